@@ -1,0 +1,70 @@
+"""The `excosim` command line.
+
+Every user mistake ends in one line on stderr and exit status 2; a runtime failure in one line and
+exit status 1. No traceback reaches a user.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import typer
+from rich.console import Console
+
+app = typer.Typer(
+    help="Co-simulation of an autonomous excavator that digs to a target weight.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+fmus_app = typer.Typer(help="Build and try the FMUs (FMI 2.0 co-simulation).", no_args_is_help=True)
+app.add_typer(fmus_app, name="fmus")
+
+_err = Console(stderr=True, highlight=False)
+
+
+def _fail(message: str, code: int) -> None:
+    _err.print(f"excosim: {message}", markup=False)
+    raise typer.Exit(code)
+
+
+@fmus_app.command("build")
+def fmus_build(
+    names: list[str] = typer.Argument(None, help="Models to build (default: all)."),
+) -> None:
+    """Build FMUs from fmus/<Model>/ and print one line per FMU: name and path."""
+    import fmus
+
+    wanted = names or list(fmus.MODELS)
+    for name in wanted:
+        if name not in fmus.MODELS:
+            _fail(f"unknown model {name!r}; known: {', '.join(fmus.MODELS)}", 2)
+    try:
+        for name in wanted:
+            print(f"{name}\t{fmus.build(name)}")
+    except fmus.BuildError as exc:
+        _fail(str(exc), 1)
+
+
+@fmus_app.command("demo")
+def fmus_demo() -> None:
+    """Simulate each FMU briefly and print a short summary."""
+    import fmus
+
+    try:
+        print(fmus.demo())
+    except fmus.BuildError as exc:
+        _fail(str(exc), 1)
+
+
+def main() -> None:
+    """Console-script entry point."""
+    try:
+        app()
+    except KeyboardInterrupt:
+        _err.print("excosim: interrupted")
+        sys.exit(130)
+
+
+if __name__ == "__main__":
+    main()
