@@ -1,1 +1,1 @@
-"""excosim orchestrator: the command line today; the co-simulation master, campaign and logs next."""
+"""excosim orchestrator: the command line now; the co-simulation master and campaign next."""

@@ -7,6 +7,7 @@ exit status 1. No traceback reaches a user.
 from __future__ import annotations
 
 import sys
+from typing import Annotated
 
 import typer
 from rich.console import Console
@@ -30,7 +31,9 @@ def _fail(message: str, code: int) -> None:
 
 @fmus_app.command("build")
 def fmus_build(
-    names: list[str] = typer.Argument(None, help="Models to build (default: all)."),
+    names: Annotated[
+        list[str] | None, typer.Argument(help="Models to build (default: all).")
+    ] = None,
 ) -> None:
     """Build FMUs from fmus/<Model>/ and print one line per FMU: name and path."""
     import fmus
