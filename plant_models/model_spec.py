@@ -1,0 +1,48 @@
+"""Which FMU plays which part of the simulated excavator, with its parameters and port map.
+
+A port map says which FMU variable plays each role the excavator needs, so any FMI 2.0
+co-simulation FMU with equivalent ports can replace one of ours. Roles:
+
+- cylinder (boom, stick, bucket): inputs `u` (spool command, -1..1, +1 extends), `F_ext` (N,
+  load along the rod, positive resists extension); outputs `x` (stroke, m), `v` (m/s), `p_A`,
+  `p_B` (Pa), `F` (N).
+- pile: inputs `tip_y`, `tip_z` (m), `bucket_angle` (rad, plant_models.geometry.pile_bucket_angle),
+  `dump` (>0.5 empties the bucket); outputs `bucket_mass` (kg), `F_y`, `F_z` (N),
+  `removed_volume` (m^3), `dumped_mass`, `pile_mass` (kg), `surface_z_at_tip` (m).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+CYLINDER_INPUTS: tuple[str, ...] = ("u", "F_ext")
+CYLINDER_OUTPUTS: tuple[str, ...] = ("x", "v", "p_A", "p_B", "F")
+PILE_INPUTS: tuple[str, ...] = ("tip_y", "tip_z", "bucket_angle", "dump")
+PILE_OUTPUTS: tuple[str, ...] = (
+    "bucket_mass", "F_y", "F_z", "removed_volume", "dumped_mass", "pile_mass", "surface_z_at_tip",
+)
+ROLES: Mapping[str, tuple[str, ...]] = MappingProxyType({
+    "cylinder": CYLINDER_INPUTS + CYLINDER_OUTPUTS,
+    "pile": PILE_INPUTS + PILE_OUTPUTS,
+})
+
+
+@dataclass(frozen=True)
+class FmuSpec:
+    """One FMU of the plant.
+
+    fmu: the name of one of our models ("HydraulicCylinder", "Pile"; built on demand) or a path
+        to any FMI 2.0 co-simulation .fmu.
+    parameters: FMU variable name -> start value (SI units, as the FMU declares them).
+    ports: role -> FMU variable name; a role left out maps to the variable of the same name.
+    """
+
+    fmu: str
+    parameters: Mapping[str, float | int | bool] = field(default_factory=dict)
+    ports: Mapping[str, str] = field(default_factory=dict)
+
+    def variable(self, role: str) -> str:
+        """The FMU variable that plays `role`."""
+        return self.ports.get(role, role)
