@@ -29,11 +29,11 @@ is lifted to (-6, 2) m; the start pose is the lifted pose (tip (-6, 2) m, bucket
 -169.33 deg), so every period ends where it began.
 The paper's case 1 (k_T = 1, k_J = 0, Table 1 limits) takes 16.17 s; planner.trajectory plans
 this path in 8.9 s (case 2: 13.4 s; paper 18.38 s), and no choice of start pose, lift pose and
-closed bucket angle brings it near 16 s: a random search over them found at most 11.0 s, and
-via-points that swing every joint from limit to limit at most 12.6 s. With Table 1's limits a
-single 180 deg rest-to-rest move takes 5.9 s, so 16 s needs larger joint swings than this arm has
-or slower limits than the paper states: the paper's via-points are unknown, and the shape is kept
-physical rather than fitted to the time.
+closed bucket angle brings it near 16 s: a random search over them found at most 11.0 s, and a
+period that starts and ends fully tucked 12.7 s. With Table 1's limits a single 180 deg
+rest-to-rest move takes 5.9 s; only via-points that reverse every joint across its whole range at
+every via-point (17.5 s) get past 16 s, which is no digging path. The paper's via-points are
+unknown, and the shape is kept physical rather than fitted to the time.
 """
 
 from __future__ import annotations
