@@ -1,0 +1,236 @@
+"""The MCAP run log of a campaign: one file per run, written period by period.
+
+Every period goes into the file as one chunk, written and flushed to the operating system
+before `log_period` returns, so a run that is killed leaves every finished period readable
+(`orchestrator.run_log_read.read_run`). Log time is campaign time: ns since the start of
+period 1 (t0 of a period + the plant's sample time).
+
+Channels (schemas in `orchestrator.run_log_schemas`, frames in `orchestrator.run_log_scene`):
+
+=================== ========================= =================================================
+topic               schema (encoding)         one message per
+=================== ========================= =================================================
+/period             excosim.PeriodSummary     period, at its end: the campaign's record
+                    (JSON)
+/joints             excosim.JointState        sample: reference and measured joints, rad
+/cylinder/<joint>   excosim.CylinderState     sample: signals <joint>.x, v, p_A, p_B, F, u, F_ext
+/pile/bucket        excosim.PileBucketState   sample: pile.* bucket outputs and tip.y/z/angle
+/signals/<comp>     excosim.SignalSample      sample: any other signals of component <comp>;
+                                              channel metadata "names" orders the values
+/pile/profile       excosim.PileProfile       period, at its end: pile surface z(y), m
+/tf                 foxglove.FrameTransforms  sample, decimated to `transform_rate_hz`
+/scene/arm          foxglove.SceneUpdate      period, at its start: a box per arm link
+/scene/pile         foxglove.SceneUpdate      period, at its end: pile surface, tip path
+=================== ========================= =================================================
+
+Metadata records: `excosim.run` (format, scenario name, plant kind, target mass, time base,
+frames), `excosim.scenario` (the resolved scenario as JSON), `excosim.versions`, `excosim.fmus`
+(FMU sha256 by name), `excosim.fmu_attachments`, `excosim.geometry` (JSON) and, at close,
+`excosim.end` (termination, message, periods): a file without it is a run that did not finish.
+Attachments: `scenario.toml` (the scenario file's text; `.json` or `.txt` if it is not TOML, see
+`excosim.run` "scenario_attachment") and `fmus/<file name>` (each distinct FMU once;
+`excosim.fmu_attachments` maps each FMU name to its attachment). Module map: run_log_metadata
+(these records), run_log_samples and run_log_scene (message content), run_log_chunk and
+run_log_mcap (the file format), run_log_read (reading it back).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+from foxglove.messages import FrameTransforms, SceneUpdate
+
+from orchestrator import run_log_scene as scene
+from orchestrator.run_log_chunk import ChunkBuilder, DoubleBatch
+from orchestrator.run_log_mcap import McapChunkWriter
+from orchestrator.run_log_metadata import (
+    FORMAT,
+    FORMAT_VERSION,
+    package_versions,
+    read_fmus,
+    to_json,
+    write_run_description,
+)
+from orchestrator.run_log_samples import checked, profile_message, sample_channels
+from orchestrator.run_log_schemas import (
+    PERIOD_SUMMARY_SCHEMA,
+    PILE_PROFILE,
+    DoubleMessage,
+    file_descriptor_set,
+)
+from plant_models.geometry import ExcavatorGeometry
+from plant_models.plant import PeriodMeasurement
+
+__all__ = ["FORMAT", "FORMAT_VERSION", "TERMINATIONS", "RunLog", "package_versions"]
+
+TERMINATIONS = ("periods", "workspace_limit", "error")
+
+
+class RunLog:
+    """Writes one campaign run to an MCAP file at `path` (refuses an existing file unless
+    `overwrite`).
+
+    scenario: the resolved scenario (JSON-able dict); scenario_text: the scenario file's text;
+    fmus: name -> path of every FMU used; plant_kind: "sim" or "lab"; target_mass_kg: the
+    target dug mass (kg); geometry: the arm, for the 3D channels (None: no /tf, /scene/arm).
+    transform_rate_hz: rate of /tf (decimated from the samples). fsync: also force each period
+    to the disk (survives a power loss, not only a killed process; costs a disk sync per period).
+    Use as a context manager: an exception inside closes the log with termination "error";
+    leaving the block normally closes it with "periods" unless `close` was called.
+    """
+
+    def __init__(self, path: str | Path, *, scenario: Mapping, scenario_text: str,
+                 scenario_name: str, fmus: Mapping[str, str | Path], plant_kind: str,
+                 target_mass_kg: float, geometry: ExcavatorGeometry | None = None,
+                 transform_rate_hz: float = 25.0, fsync: bool = False,
+                 overwrite: bool = False) -> None:
+        if not (isinstance(target_mass_kg, int | float) and math.isfinite(target_mass_kg)):
+            raise ValueError(f"target_mass_kg must be a finite number, got {target_mass_kg!r}")
+        if not transform_rate_hz > 0.0:
+            raise ValueError(f"transform_rate_hz must be > 0, got {transform_rate_hz!r}")
+        fmu_files = read_fmus(fmus)
+        scenario_json = to_json(dict(scenario), "scenario")
+        self.path = Path(path)
+        try:
+            stream = open(self.path, "wb" if overwrite else "xb")
+        except FileExistsError:
+            raise FileExistsError(f"run log {self.path} already exists") from None
+        self._geometry = geometry
+        self._rate_hz = float(transform_rate_hz)
+        self._fsync = fsync
+        self._periods = 0
+        self._closed = False
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[tuple, int] = {}
+        library = f"excosim {package_versions()['excosim']}"
+        self._writer = McapChunkWriter(stream, library=library)
+        write_run_description(
+            self._writer, scenario_json=scenario_json, scenario_text=scenario_text,
+            scenario_name=scenario_name, fmus=fmu_files, plant_kind=plant_kind,
+            target_mass_kg=target_mass_kg, geometry=geometry,
+        )
+        self._writer.flush(fsync)
+
+    # -- channels ---------------------------------------------------------------------------
+
+    def _schema(self, name: str, encoding: str, data: bytes) -> int:
+        if name not in self._schemas:
+            self._schemas[name] = self._writer.add_schema(name, encoding, data)
+        return self._schemas[name]
+
+    def _proto_channel(self, topic: str, message: DoubleMessage, metadata: dict) -> int:
+        key = (topic, tuple(sorted(metadata.items())))
+        if key not in self._channels:
+            schema = self._schema(message.full_name, "protobuf", file_descriptor_set(message))
+            self._channels[key] = self._writer.add_channel(topic, "protobuf", schema, metadata)
+        return self._channels[key]
+
+    def _foxglove_channel(self, topic: str, message_type) -> int:
+        key = (topic, ())
+        if key not in self._channels:
+            schema = message_type.get_schema()
+            schema_id = self._schema(schema.name, schema.encoding, schema.data)
+            self._channels[key] = self._writer.add_channel(topic, "protobuf", schema_id)
+        return self._channels[key]
+
+    def _period_channel(self) -> int:
+        key = ("/period", ())
+        if key not in self._channels:
+            schema = self._schema("excosim.PeriodSummary", "jsonschema",
+                                  json.dumps(PERIOD_SUMMARY_SCHEMA).encode())
+            self._channels[key] = self._writer.add_channel("/period", "json", schema)
+        return self._channels[key]
+
+    # -- periods ----------------------------------------------------------------------------
+
+    def log_period(self, record: Mapping, measurement: PeriodMeasurement, t0_s: float) -> None:
+        """Write one period and flush it: `record` (any JSON-able dict; numpy values become
+        lists) on /period, the measurement's samples at log time t0_s + t_s (s), the pile
+        profile and the 3D scene. t0_s: campaign time (s) at the period's start, >= 0."""
+        if self._closed:
+            raise ValueError(f"run log {self.path} is closed")
+        period = self._periods + 1
+        if not isinstance(record, Mapping):
+            raise ValueError(f"period {period} record must be a dict, got {type(record)}")
+        record_json = to_json(dict(record), f"period {period} record").encode()
+        period_data = checked(measurement)
+        t, joints = period_data.t_s, period_data.joints_rad
+        if not (math.isfinite(t0_s) and t0_s >= 0.0 and t0_s + t[0] >= 0.0):
+            raise ValueError(f"t0_s must be finite and t0_s + t_s >= 0, got t0_s = {t0_s!r}")
+        times = t0_s + t
+        log_ns = np.rint(times * 1e9).astype(np.uint64)
+        start_ns, end_ns = int(round(t0_s * 1e9)), int(log_ns[-1])
+        chunk = ChunkBuilder()
+        batches = []
+        for sample in sample_channels(period_data, times):
+            channel = self._proto_channel(sample.topic, sample.message, sample.metadata)
+            first = self._writer.reserve_sequence(channel, len(times))
+            batches.append(DoubleBatch(channel, first, sample.prefixes, sample.values))
+        chunk.add_batches(batches, log_ns)
+        tip_path = None
+        if self._geometry is not None:
+            picked = np.arange(0, len(t), scene.decimation_stride(t, self._rate_hz))
+            self._add_arm(chunk, joints[picked], log_ns[picked], start_ns)
+            tip_path = scene.tip_positions(self._geometry, joints[picked])
+        grid, profile = period_data.pile_grid_m, period_data.pile_profile_m
+        if profile is not None:
+            channel = self._proto_channel("/pile/profile", PILE_PROFILE, {})
+            chunk.add_message(channel, self._writer.reserve_sequence(channel, 1), end_ns,
+                              profile_message(times[-1], grid, profile))
+        if profile is not None or tip_path is not None:
+            pile = self._foxglove_channel("/scene/pile", SceneUpdate)
+            data = scene.pile_scene(end_ns, grid, profile, tip_path, self._geometry)
+            chunk.add_message(pile, self._writer.reserve_sequence(pile, 1), end_ns, data)
+        channel = self._period_channel()
+        chunk.add_message(channel, self._writer.reserve_sequence(channel, 1), end_ns,
+                          record_json)
+        self._writer.write_chunk(chunk)
+        self._writer.flush(self._fsync)
+        self._periods = period
+
+    def _add_arm(self, chunk: ChunkBuilder, joints: np.ndarray, log_ns: np.ndarray,
+                 start_ns: int) -> None:
+        """/scene/arm at the period's start, /tf for joints (n, 3) rad at times (n,) ns."""
+        arm = self._foxglove_channel("/scene/arm", SceneUpdate)
+        data = scene.arm_scene(self._geometry, start_ns)
+        chunk.add_message(arm, self._writer.reserve_sequence(arm, 1), start_ns, data)
+        channel = self._foxglove_channel("/tf", FrameTransforms)
+        first = self._writer.reserve_sequence(channel, len(log_ns))
+        groups = scene.encode_frame_transforms(scene.link_transforms(self._geometry, joints),
+                                               log_ns)
+        chunk.add_grouped(channel, first, log_ns, groups)
+
+    # -- closing ----------------------------------------------------------------------------
+
+    @property
+    def periods(self) -> int:
+        """Number of periods logged so far."""
+        return self._periods
+
+    def close(self, termination: str, message: str = "") -> None:
+        """Write the end record (termination: one of TERMINATIONS; message: one line) and the
+        file's summary. A second call does nothing."""
+        if self._closed:
+            return
+        if termination not in TERMINATIONS:
+            raise ValueError(f"termination must be one of {', '.join(TERMINATIONS)}, "
+                             f"got {termination!r}")
+        self._closed = True
+        self._writer.add_metadata("excosim.end", {
+            "termination": termination, "message": str(message), "periods": str(self._periods),
+        })
+        self._writer.finish()
+
+    def __enter__(self) -> RunLog:
+        return self
+
+    def __exit__(self, exc_type, exc, traceback) -> None:
+        if exc_type is not None:
+            self.close("error", f"{exc_type.__name__}: {exc}".splitlines()[0])
+        else:
+            self.close("periods")
+

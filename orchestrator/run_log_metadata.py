@@ -1,0 +1,122 @@
+"""What a run log says about its run before the first period: metadata records (format,
+scenario, package versions, FMU hashes, geometry) and attachments (scenario file, FMUs)."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import platform
+import tomllib
+from collections.abc import Mapping
+from importlib import metadata as importlib_metadata
+from pathlib import Path
+
+import numpy as np
+
+from orchestrator.run_log_mcap import McapChunkWriter
+from orchestrator.run_log_scene import FRAMES_DOC
+from plant_models.geometry import ExcavatorGeometry
+
+FORMAT = "excosim-run-log"
+FORMAT_VERSION = "1"
+# Distribution names of the packages whose versions a run records.
+_PACKAGES = (("excosim", "excosim"), ("fmpy", "fmpy"), ("numpy", "numpy"), ("scipy", "scipy"),
+             ("control", "control"), ("foxglove", "foxglove-sdk"), ("mcap", "mcap"))
+
+
+def package_versions() -> dict[str, str]:
+    """Versions of excosim, its numerical and logging dependencies and Python."""
+    out = {}
+    for name, distribution in _PACKAGES:
+        try:
+            out[name] = importlib_metadata.version(distribution)
+        except importlib_metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    out["python"] = platform.python_version()
+    return out
+
+
+def scenario_attachment(text: str) -> tuple[str, str]:
+    """Attachment name and media type for a scenario file's text: TOML, JSON or plain text."""
+    try:
+        tomllib.loads(text)
+        return "scenario.toml", "application/toml"
+    except tomllib.TOMLDecodeError:
+        pass
+    try:
+        json.loads(text)
+        return "scenario.json", "application/json"
+    except ValueError:
+        return "scenario.txt", "text/plain"
+
+
+def _plain(value):
+    """JSON fallback for numpy values and paths."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(f"{type(value).__name__} is not JSON-serializable")
+
+
+def to_json(value, what: str) -> str:
+    """JSON text of `value` (numpy values become lists and numbers); ValueError naming `what`
+    if it is not JSON-able (NaN and infinities included)."""
+    try:
+        return json.dumps(value, default=_plain, allow_nan=False)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{what} is not JSON-serializable: {exc}") from None
+
+
+def read_fmus(fmus: Mapping[str, str | Path]) -> dict[str, tuple[str, bytes]]:
+    """FMU name -> (file name, bytes); ValueError naming an FMU whose file is missing."""
+    out = {}
+    for name, path in fmus.items():
+        if not Path(path).is_file():
+            raise ValueError(f"FMU {name!r}: no file at {path}")
+        out[name] = (Path(path).name, Path(path).read_bytes())
+    return out
+
+
+def write_run_description(writer: McapChunkWriter, *, scenario_json: str, scenario_text: str,
+                          scenario_name: str, fmus: dict[str, tuple[str, bytes]],
+                          plant_kind: str, target_mass_kg: float,
+                          geometry: ExcavatorGeometry | None) -> None:
+    """The metadata records and attachments a run log starts with (`orchestrator.run_log`)."""
+    versions = package_versions()
+    scenario_file, scenario_media = scenario_attachment(scenario_text)
+    writer.add_metadata("excosim.run", {
+        "format": FORMAT, "format_version": FORMAT_VERSION, "scenario_name": scenario_name,
+        "plant_kind": plant_kind, "target_mass_kg": repr(float(target_mass_kg)),
+        "scenario_attachment": scenario_file,
+        "geometry": geometry.name if geometry is not None else "",
+        "time_base": "log time = campaign time in ns since the start of period 1",
+        "frames": FRAMES_DOC,
+    })
+    writer.add_metadata("excosim.scenario", {"json": scenario_json})
+    writer.add_metadata("excosim.versions", versions)
+    # One attachment per distinct FMU, named by its file (by FMU name too if two files differ).
+    hashes, names, attached = {}, {}, {}
+    to_attach: list[tuple[str, bytes]] = []
+    for name, (file_name, data) in fmus.items():
+        digest = hashlib.sha256(data).hexdigest()
+        hashes[name] = digest
+        if digest not in attached:
+            attachment = f"fmus/{file_name}"
+            if attachment in attached.values():
+                attachment = f"fmus/{name}/{file_name}"
+            attached[digest] = attachment
+            to_attach.append((attachment, data))
+        names[name] = attached[digest]
+    writer.add_metadata("excosim.fmus", hashes)
+    writer.add_metadata("excosim.fmu_attachments", names)
+    if geometry is not None:
+        writer.add_metadata("excosim.geometry", {
+            "name": geometry.name, "json": to_json(dataclasses.asdict(geometry), "geometry"),
+        })
+    writer.add_attachment(scenario_file, scenario_media, scenario_text.encode())
+    for attachment, data in to_attach:
+        writer.add_attachment(attachment, "application/zip", data)

@@ -1,0 +1,135 @@
+"""A period's measurement as run-log content: checked arrays, the high-rate channels with their
+protobuf field layout, and the pile profile message (`orchestrator.run_log_schemas`)."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+
+import numpy as np
+
+from orchestrator.run_log_schemas import (
+    CYLINDER_STATE,
+    JOINT_STATE,
+    PILE_BUCKET_STATE,
+    PILE_PROFILE,
+    SIGNAL_SAMPLE,
+    DoubleMessage,
+    cylinder_signals,
+)
+from orchestrator.run_log_wire import varint
+from plant_models.plant import JOINTS, PeriodMeasurement
+
+
+@dataclass(frozen=True)
+class CheckedPeriod:
+    """A PeriodMeasurement as float64 arrays: t_s (m,), joints_rad and reference_rad (m, 3),
+    signals name -> (m,), pile_grid_m and pile_profile_m (n_cells,) or None."""
+
+    t_s: np.ndarray
+    joints_rad: np.ndarray
+    reference_rad: np.ndarray
+    signals: dict[str, np.ndarray]
+    pile_grid_m: np.ndarray | None
+    pile_profile_m: np.ndarray | None
+
+
+@dataclass(frozen=True)
+class SampleChannel:
+    """One high-rate channel of a period: one message per sample whose payload is, for each
+    column j, `prefixes[j]` (protobuf tag bytes) then the double `values[:, j]`."""
+
+    topic: str
+    message: DoubleMessage
+    metadata: dict[str, str]
+    prefixes: tuple[bytes, ...]
+    values: np.ndarray  # (m, len(prefixes))
+
+
+def double_tag(number: int) -> bytes:
+    """Protobuf tag of double field `number` (wire type fixed64)."""
+    return bytes([number << 3 | 1])
+
+
+def _packed_tag(number: int, count: int) -> bytes:
+    """Tag and length of a packed repeated double field of `count` values."""
+    return bytes([number << 3 | 2]) + varint(8 * count)
+
+
+def checked(measurement: PeriodMeasurement) -> CheckedPeriod:
+    """The measurement as float64 arrays; ValueError naming what is malformed."""
+    t = np.asarray(measurement.t_s, dtype=float)
+    m = t.shape[0] if t.ndim == 1 else 0
+    if m < 1 or t.ndim != 1 or not np.all(np.isfinite(t)) or np.any(np.diff(t) < 0.0):
+        raise ValueError("measurement.t_s must be a non-empty (m,) array of finite, "
+                         "non-decreasing times in s")
+    arrays = []
+    for name in ("joints_rad", "reference_rad"):
+        value = np.asarray(getattr(measurement, name), dtype=float)
+        if value.shape != (m, len(JOINTS)):
+            raise ValueError(f"measurement.{name} has shape {value.shape}, expected ({m}, 3)")
+        arrays.append(value)
+    signals = {}
+    for name, value in measurement.signals.items():
+        value = np.asarray(value, dtype=float)
+        if value.shape != (m,):
+            raise ValueError(f"signal {name!r} has shape {value.shape}, expected ({m},)")
+        signals[name] = value
+    profile, grid = measurement.pile_profile_m, None
+    if profile is not None:
+        profile = np.asarray(profile, dtype=float)
+        if profile.ndim != 1:
+            raise ValueError(f"pile_profile_m has shape {profile.shape}, expected (n_cells,)")
+        if measurement.pile_grid_m is not None:
+            grid = np.asarray(measurement.pile_grid_m, dtype=float)
+            if grid.shape != profile.shape:
+                raise ValueError(f"pile_grid_m has shape {grid.shape} but pile_profile_m has "
+                                 f"shape {profile.shape}")
+    return CheckedPeriod(t, arrays[0], arrays[1], signals, grid, profile)
+
+
+def sample_channels(period: CheckedPeriod, times_s: np.ndarray) -> list[SampleChannel]:
+    """The high-rate channels of a period with campaign times times_s (m,) s: /joints always;
+    /cylinder/<joint> and /pile/bucket with the fields whose signals were measured; every other
+    signal on /signals/<component> (the part of its name before the first dot)."""
+    out = [SampleChannel("/joints", JOINT_STATE, {},
+                         tuple(double_tag(n + 1) for n in range(len(JOINT_STATE.fields))),
+                         np.column_stack([times_s, period.reference_rad, period.joints_rad]))]
+    groups = [(f"/cylinder/{joint}", CYLINDER_STATE, cylinder_signals(joint))
+              for joint in JOINTS]
+    groups.append(("/pile/bucket", PILE_BUCKET_STATE, PILE_BUCKET_STATE.signals))
+    signals, used = period.signals, set()
+    for topic, message, sources in groups:
+        mapping = {f: s for f, s in zip(message.fields, sources, strict=True) if s}
+        fields = [f for f, s in mapping.items() if s in signals]
+        if not fields:
+            continue
+        used.update(mapping[f] for f in fields)
+        out.append(SampleChannel(
+            topic, message, {"signals": json.dumps(mapping)},
+            tuple(double_tag(message.number(f)) for f in ("t_s", *fields)),
+            np.column_stack([times_s] + [signals[mapping[f]] for f in fields]),
+        ))
+    components: dict[str, list[str]] = {}
+    for name in signals:
+        if name not in used:
+            components.setdefault(name.split(".", 1)[0] if "." in name else "plant",
+                                  []).append(name)
+    for component, names in components.items():
+        packed = _packed_tag(SIGNAL_SAMPLE.number("values"), len(names))
+        out.append(SampleChannel(
+            f"/signals/{component}", SIGNAL_SAMPLE, {"names": json.dumps(names)},
+            (double_tag(1), packed) + (b"",) * (len(names) - 1),
+            np.column_stack([times_s] + [signals[n] for n in names]),
+        ))
+    return out
+
+
+def profile_message(time_s: float, grid_m: np.ndarray | None, profile_m: np.ndarray) -> bytes:
+    """Serialized excosim.PileProfile: t_s (s), y_m (cell centres, m; empty if unknown), z_m."""
+    data = double_tag(1) + np.float64(time_s).astype("<f8").tobytes()
+    for name, values in (("y_m", grid_m), ("z_m", profile_m)):
+        if values is not None and values.size:
+            data += _packed_tag(PILE_PROFILE.number(name), values.size)
+            data += values.astype("<f8").tobytes()
+    return data

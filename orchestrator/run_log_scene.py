@@ -1,0 +1,220 @@
+"""The arm and the pile in Foxglove's 3D terms: frame transforms of the arm links and scene
+updates of the arm, the pile surface and the bucket-tip path.
+
+Frames (Foxglove and ROS REP-103: x forward, y left, z up, right-handed):
+
+- `world`: the machine frame turned so that x points forward. x = -y_machine (the machine digs
+  at y < 0, so the dig zone is at x > 0), z = z_machine (up, ground at z = 0), y = lateral (the
+  arm moves in the plane y = 0).
+- `boom`: origin at the boom foot, x along the boom line (boom foot -> stick pin).
+- `stick`: origin at the stick pin, x along the stick line (stick pin -> bucket pin).
+- `bucket`: origin at the bucket pin, x along the bucket line (bucket pin -> bucket tip).
+- `bucket_tip`: origin at the bucket tip, axes as `bucket`.
+
+Each link frame is its parent turned about its y axis by minus the joint angle (a joint angle
+turns its link up toward +z, which is a negative turn about +y), so a point (u, 0, v) of a link
+frame is the point (u, v) of `plant_models.geometry`'s link frames.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from foxglove.messages import (
+    Color,
+    CubePrimitive,
+    Duration,
+    Pose,
+    Quaternion,
+    SceneEntity,
+    SceneUpdate,
+    Timestamp,
+    Vector3,
+)
+
+from orchestrator.run_log_wire import doubles, field, rows, varint, varint_digits
+from plant_models.geometry import ExcavatorGeometry
+
+WORLD = "world"
+LINK_FRAMES = ("boom", "stick", "bucket")
+TIP_FRAME = "bucket_tip"
+FRAMES = (WORLD, *LINK_FRAMES, TIP_FRAME)
+FRAMES_DOC = (
+    "world: x = -y_machine (forward), y = lateral (left), z = z_machine (up, ground z = 0); "
+    "boom, stick, bucket: origin at the link's proximal pin, x along the link; "
+    "bucket_tip: at the bucket tip; a link frame is its parent turned about y by -joint angle"
+)
+
+_ARM_COLOR = Color(r=0.95, g=0.7, b=0.1, a=1.0)
+_PILE_COLOR = (0.55, 0.4, 0.25, 1.0)
+_PATH_COLOR = (0.1, 0.5, 1.0, 1.0)
+# Display sizes only, relative to the arm's reach: link thickness and the pile's shown width.
+_LINK_THICKNESS = 0.03
+_PILE_WIDTH = 0.15
+
+
+def link_transforms(geometry: ExcavatorGeometry, joints_rad: np.ndarray):
+    """Parent->child transforms of the arm for joints (n, 3) rad.
+
+    Returns a list of (parent, child, translation (n, 3) m, rotation (n, 4) quaternion x, y, z, w),
+    in the order world->boom, boom->stick, stick->bucket, bucket->bucket_tip.
+    """
+    q = np.asarray(joints_rad, dtype=float)
+    n = len(q)
+    foot_y, foot_z = geometry.boom_foot_m
+    offsets = (
+        (-foot_y, foot_z), (geometry.boom_length_m, 0.0), (geometry.stick_length_m, 0.0),
+        (geometry.bucket_length_m, 0.0),
+    )
+    out = []
+    for index, (parent, child) in enumerate(zip(FRAMES[:-1], FRAMES[1:], strict=True)):
+        translation = np.zeros((n, 3))
+        translation[:, 0], translation[:, 2] = offsets[index]
+        rotation = np.zeros((n, 4))
+        if index < 3:
+            half = -0.5 * q[:, index]
+            rotation[:, 1], rotation[:, 3] = np.sin(half), np.cos(half)
+        else:
+            rotation[:, 3] = 1.0
+        out.append((parent, child, translation, rotation))
+    return out
+
+
+def tip_positions(geometry: ExcavatorGeometry, joints_rad: np.ndarray) -> np.ndarray:
+    """Bucket tip (n, 3) m in `world` for joints (n, 3) rad."""
+    q = np.asarray(joints_rad, dtype=float)
+    angles = np.cumsum(q, axis=1)
+    lengths = (geometry.boom_length_m, geometry.stick_length_m, geometry.bucket_length_m)
+    xyz = np.zeros((len(q), 3))
+    xyz[:, 0] = -geometry.boom_foot_m[0] + np.cos(angles) @ np.array(lengths)
+    xyz[:, 2] = geometry.boom_foot_m[1] + np.sin(angles) @ np.array(lengths)
+    return xyz
+
+
+def _string_field(number: int, text: str) -> bytes:
+    return field(number, text.encode())
+
+
+def encode_frame_transforms(transforms, log_time_ns: np.ndarray):
+    """foxglove.FrameTransforms messages (serialized protobuf), one per sample, from
+    `link_transforms` output and the samples' times (n,) ns (the transforms' timestamps).
+
+    Returns groups [(sample indices, payloads (n_g, w_g) uint8)] of equal-size messages (sizes
+    differ only through the timestamp varints); `orchestrator.run_log_wire.interleave` joins
+    them. Explicit zeros are written (valid protobuf) so every other part has a fixed size.
+    """
+    ns = np.asarray(log_time_ns, dtype=np.uint64)
+    billion = np.uint64(1_000_000_000)
+    second_digits, second_lengths = varint_digits(ns // billion)
+    nano_digits, nano_lengths = varint_digits(ns % billion)
+    kinds = second_lengths * _MAX_VARINT + nano_lengths
+    fixed = [  # parent, child, translation and rotation of each transform, all samples
+        rows(len(ns), [_string_field(2, parent) + _string_field(3, child),
+                       b"\x22\x1b", doubles((1, 2, 3), translation),  # Vector3: 27 bytes
+                       b"\x2a\x24", doubles((1, 2, 3, 4), rotation)])  # Quaternion: 36 bytes
+        for parent, child, translation, rotation in transforms
+    ]
+    groups = []
+    for kind in np.unique(kinds):
+        index = np.flatnonzero(kinds == kind)
+        n = len(index)
+        stamp = rows(n, [b"\x08", second_digits[index, :kind // _MAX_VARINT],
+                         b"\x10", nano_digits[index, :kind % _MAX_VARINT]])
+        stamp = rows(n, [b"\x0a" + varint(stamp.shape[1]), stamp])  # FrameTransform.timestamp
+        parts = []
+        for transform in fixed:
+            size = stamp.shape[1] + transform.shape[1]
+            parts += [b"\x0a" + varint(size), stamp, transform[index]]  # .transforms
+        groups.append((index, rows(n, parts)))
+    return groups
+
+
+_MAX_VARINT = 16  # > the longest varint, to pack two varint lengths into one number
+
+
+def _reach(geometry: ExcavatorGeometry | None) -> float:
+    if geometry is None:
+        return 1.0
+    return geometry.boom_length_m + geometry.stick_length_m + geometry.bucket_length_m
+
+
+def _time(time_ns: int) -> Timestamp:
+    seconds, nanos = divmod(int(time_ns), 1_000_000_000)
+    return Timestamp(sec=seconds, nsec=nanos)
+
+
+def arm_scene(geometry: ExcavatorGeometry, time_ns: int) -> bytes:
+    """foxglove.SceneUpdate with one box per link, locked to the link frames."""
+    thickness = _LINK_THICKNESS * _reach(geometry)
+    lengths = (geometry.boom_length_m, geometry.stick_length_m, geometry.bucket_length_m)
+    entities = []
+    for frame, length in zip(LINK_FRAMES, lengths, strict=True):
+        cube = CubePrimitive(
+            pose=Pose(position=Vector3(x=length / 2.0, y=0.0, z=0.0),
+                      orientation=Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)),
+            size=Vector3(x=length, y=thickness, z=thickness), color=_ARM_COLOR,
+        )
+        entities.append(SceneEntity(
+            timestamp=_time(time_ns), frame_id=frame, id=f"arm/{frame}", frame_locked=True,
+            lifetime=Duration(sec=0, nsec=0), cubes=[cube],
+        ))
+    return SceneUpdate(entities=entities).encode()
+
+
+# Hand-encoded parts of the pile scene (its point lists are long; numpy encodes them at once).
+# Field numbers: foxglove/SceneEntity.proto, TriangleListPrimitive.proto, LinePrimitive.proto.
+_IDENTITY_POSE = field(1, doubles((1, 2, 3), np.zeros((1, 3))).tobytes()) + field(
+    2, doubles((1, 2, 3, 4), np.array([[0.0, 0.0, 0.0, 1.0]])).tobytes())
+
+
+def _color(rgba) -> bytes:
+    return doubles((1, 2, 3, 4), np.array([rgba], dtype=float)).tobytes()
+
+
+def _points(number: int, xyz: np.ndarray) -> bytes:
+    """Repeated foxglove.Point3 field `number` for points (n, 3) m."""
+    return rows(len(xyz), [bytes([number << 3 | 2, 27]), doubles((1, 2, 3), xyz)]).tobytes()
+
+
+def _entity(time_ns: int, entity_id: str, primitive: bytes) -> bytes:
+    seconds, nanos = divmod(int(time_ns), 1_000_000_000)
+    stamp = b"\x08" + varint(seconds) + b"\x10" + varint(nanos)
+    lifetime_forever = field(4, b"")
+    return (field(1, stamp) + _string_field(2, WORLD) + _string_field(3, entity_id)
+            + lifetime_forever + primitive)
+
+
+def pile_scene(time_ns: int, grid_m, profile_m, tip_world_m, geometry: ExcavatorGeometry | None
+               ) -> bytes:
+    """foxglove.SceneUpdate with the pile surface (the profile z(y) extruded across a display
+    width) and the bucket-tip path of the period (tip_world_m (n, 3) m in `world`, or None)."""
+    entities = b""
+    if grid_m is not None and profile_m is not None and len(grid_m) >= 2:
+        y, z = np.asarray(grid_m, dtype=float), np.asarray(profile_m, dtype=float)
+        half = 0.5 * _PILE_WIDTH * _reach(geometry)
+        corners = np.zeros((len(y), 2, 3))
+        corners[:, :, 0] = -y[:, None]
+        corners[:, :, 1] = (-half, half)
+        corners[:, :, 2] = z[:, None]
+        a = 2 * np.arange(len(y) - 1, dtype=np.uint32)[:, None]
+        indices = (a + np.array([0, 1, 2, 1, 3, 2], dtype=np.uint32)).astype("<u4")
+        triangles = (field(1, _IDENTITY_POSE) + _points(2, corners.reshape(-1, 3))
+                     + field(3, _color(_PILE_COLOR)) + field(5, indices.tobytes()))
+        entities += field(2, _entity(time_ns, "pile/surface", field(12, triangles)))
+    if tip_world_m is not None and len(tip_world_m) >= 2:
+        line = (b"\x08\x00" + field(2, _IDENTITY_POSE)  # LINE_STRIP
+                + b"\x19" + np.float64(3.0).tobytes() + b"\x20\x01"  # 3 px, scale-invariant
+                + _points(5, np.asarray(tip_world_m, dtype=float)) + field(6, _color(_PATH_COLOR)))
+        entities += field(2, _entity(time_ns, "pile/bucket_tip_path", field(11, line)))
+    return entities
+
+
+def decimation_stride(t_s: np.ndarray, rate_hz: float) -> int:
+    """Sample stride giving about `rate_hz` from samples at times t_s (s)."""
+    if len(t_s) < 2:
+        return 1
+    step = float(np.median(np.diff(t_s)))
+    if not step > 0.0:
+        return 1
+    return max(1, int(math.floor(1.0 / (rate_hz * step) + 0.5)))

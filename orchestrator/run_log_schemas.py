@@ -1,0 +1,147 @@
+"""Message schemas of a run log: custom protobuf messages (package `excosim`) and the JSON schema
+of the per-period summary.
+
+The protobuf messages are proto2 with explicit presence: a field the plant did not measure is
+absent from the message (not a misleading 0). Every high-rate message is a flat list of doubles
+(field 1 is always `t_s`, campaign time in s), so the writer can encode a whole period at once
+with numpy (`orchestrator.run_log_mcap`). Field numbers never change; new fields get new numbers.
+Names carry their SI unit (`_m`, `_m_s`, `_Pa`, `_N`, `_kg`, `_rad`, `_m3`).
+
+Signal names come from `plant_models.plant.PeriodMeasurement.signals` ("<component>.<variable>")
+and the FMU roles of `plant_models.model_spec`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from google.protobuf import descriptor_pb2
+
+from plant_models.plant import JOINTS
+
+PACKAGE = "excosim"
+
+
+@dataclass(frozen=True)
+class DoubleMessage:
+    """A protobuf message of optional doubles (field numbers 1..n in order) and, optionally,
+    packed repeated doubles after them. `signals[i]` is the measurement signal behind
+    `fields[i]` ("" where the writer computes the value itself)."""
+
+    name: str
+    fields: tuple[str, ...]
+    signals: tuple[str, ...] = ()
+    repeated: tuple[str, ...] = ()
+
+    @property
+    def full_name(self) -> str:
+        return f"{PACKAGE}.{self.name}"
+
+    def number(self, field: str) -> int:
+        """Protobuf field number of `field` (scalar or repeated)."""
+        return (self.fields + self.repeated).index(field) + 1
+
+
+JOINT_STATE = DoubleMessage(
+    "JointState",
+    ("t_s",)
+    + tuple(f"reference_{joint}_rad" for joint in JOINTS)
+    + tuple(f"measured_{joint}_rad" for joint in JOINTS),
+)
+
+# Field -> FMU role of a HydraulicCylinder (plant_models.model_spec: outputs, then inputs).
+_CYLINDER_ROLES = (
+    ("x_m", "x"), ("v_m_s", "v"), ("p_A_Pa", "p_A"), ("p_B_Pa", "p_B"), ("F_N", "F"),
+    ("u", "u"), ("F_ext_N", "F_ext"),
+)
+CYLINDER_STATE = DoubleMessage(
+    "CylinderState",
+    ("t_s",) + tuple(name for name, _ in _CYLINDER_ROLES),
+    ("",) + tuple(role for _, role in _CYLINDER_ROLES),
+)
+
+
+def cylinder_signals(joint: str) -> tuple[str, ...]:
+    """Measurement signal names ("boom.p_A", ...) behind CylinderState's fields for `joint`."""
+    return tuple(f"{joint}.{role}" if role else "" for role in CYLINDER_STATE.signals)
+
+
+_PILE_BUCKET = (
+    ("bucket_mass_kg", "pile.bucket_mass"),
+    ("F_y_N", "pile.F_y"),
+    ("F_z_N", "pile.F_z"),
+    ("surface_z_at_tip_m", "pile.surface_z_at_tip"),
+    ("removed_volume_m3", "pile.removed_volume"),
+    ("dumped_mass_kg", "pile.dumped_mass"),
+    ("pile_mass_kg", "pile.pile_mass"),
+    ("tip_y_m", "tip.y"),
+    ("tip_z_m", "tip.z"),
+    ("tip_bucket_angle_rad", "tip.bucket_angle"),  # absolute: boom + stick + bucket (geometry)
+)
+PILE_BUCKET_STATE = DoubleMessage(
+    "PileBucketState",
+    ("t_s",) + tuple(name for name, _ in _PILE_BUCKET),
+    ("",) + tuple(signal for _, signal in _PILE_BUCKET),
+)
+
+# Pile surface after a period: cell-centre y (m, machine frame) and surface height z (m).
+PILE_PROFILE = DoubleMessage("PileProfile", ("t_s",), repeated=("y_m", "z_m"))
+
+# Any other signals of one component: `values` in the order the channel metadata "names" gives.
+SIGNAL_SAMPLE = DoubleMessage("SignalSample", ("t_s",), repeated=("values",))
+
+MESSAGES = (JOINT_STATE, CYLINDER_STATE, PILE_BUCKET_STATE, PILE_PROFILE, SIGNAL_SAMPLE)
+
+
+def file_descriptor_set(message: DoubleMessage) -> bytes:
+    """Serialized google.protobuf.FileDescriptorSet defining `message` (what MCAP and Foxglove
+    expect as a protobuf schema's data)."""
+    proto = descriptor_pb2.FileDescriptorProto(
+        name=f"{PACKAGE}/{message.name}.proto", package=PACKAGE, syntax="proto2"
+    )
+    body = proto.message_type.add(name=message.name)
+    double = descriptor_pb2.FieldDescriptorProto.TYPE_DOUBLE
+    for field in message.fields:
+        body.field.add(
+            name=field, number=message.number(field), type=double,
+            label=descriptor_pb2.FieldDescriptorProto.LABEL_OPTIONAL,
+        )
+    for field in message.repeated:
+        added = body.field.add(
+            name=field, number=message.number(field), type=double,
+            label=descriptor_pb2.FieldDescriptorProto.LABEL_REPEATED,
+        )
+        added.options.packed = True
+    return descriptor_pb2.FileDescriptorSet(file=[proto]).SerializeToString()
+
+
+def _triple(unit: str) -> dict:
+    return {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3,
+            "description": f"[boom, stick, bucket], {unit}"}
+
+
+# What the campaign puts in a period record; the writer stores any JSON object as it is, so
+# the schema names the usual keys without requiring them.
+PERIOD_SUMMARY_SCHEMA: dict = {
+    "title": "excosim.PeriodSummary",
+    "description": "One digging period: where it dug, what it weighed, how the arm moved.",
+    "type": "object",
+    "properties": {
+        "k": {"type": "integer", "minimum": 1, "description": "period number, 1-based"},
+        "deepest_point_m": {"type": "array", "items": {"type": "number"}, "minItems": 2,
+                            "maxItems": 2, "description": "deepest point D [y, z], m"},
+        "mass_kg": {"type": "number", "description": "weighed mass, kg"},
+        "error_kg": {"type": "number", "description": "target minus weighed mass, kg"},
+        "reset": {"type": "boolean", "description": "D was reset (workspace limit)"},
+        "duration_s": {"type": "number", "description": "period duration, s"},
+        "max_abs_velocity_deg_s": _triple("deg/s"),
+        "max_abs_acceleration_deg_s2": _triple("deg/s^2"),
+        "max_abs_jerk_deg_s3": _triple("deg/s^3"),
+        "tracking_rms_deg": _triple("deg"),
+        "planner_ms": {"type": "number", "description": "planner wall time, ms"},
+        "via_points_rad": {"type": "array", "description": "joint via-points, rad"},
+        "segment_durations_s": {"type": "array", "items": {"type": "number"}},
+        "spline": {"type": "object", "description": "B-spline knots and coefficients"},
+    },
+    "additionalProperties": True,
+}

@@ -1,0 +1,72 @@
+"""Byte-level functions for encoding many protobuf messages or MCAP records at once with numpy.
+
+Rows of bytes are (n, w) uint8 arrays: row i is message i. Messages whose sizes differ (only
+through varints, e.g. timestamps) are encoded in groups of equal size and put back in order
+by `interleave`. Protobuf wire format: https://protobuf.dev/programming-guides/encoding/
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+_SMALL_VARINTS = [bytes((value,)) for value in range(0x80)]
+_MAX_VARINT_BYTES = 10  # a 64-bit value needs at most 10 groups of 7 bits
+
+
+def varint(value: int) -> bytes:
+    """Protobuf base-128 varint of a non-negative integer."""
+    if value < 0x80:
+        return _SMALL_VARINTS[value]
+    out = bytearray()
+    while value > 0x7F:
+        out.append((value & 0x7F) | 0x80)
+        value >>= 7
+    out.append(value)
+    return bytes(out)
+
+
+def varint_digits(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Varints of non-negative integers (n,): digits (n, 10) uint8 (row i's varint is
+    digits[i, :lengths[i]]) and lengths (n,)."""
+    v = np.asarray(values, dtype=np.uint64)
+    groups = np.arange(_MAX_VARINT_BYTES, dtype=np.uint64)
+    lengths = 1 + np.sum(v[:, None] >= (np.uint64(1) << (np.uint64(7) * groups[1:])), axis=1)
+    digits = ((v[:, None] >> (np.uint64(7) * groups)) & np.uint64(0x7F)).astype(np.uint8)
+    digits[np.arange(_MAX_VARINT_BYTES)[None, :] < (lengths - 1)[:, None]] |= 0x80
+    return digits, lengths.astype(np.int64)
+
+
+def rows(n: int, segments) -> np.ndarray:
+    """(n, w) uint8: each row the concatenation of `segments`, each either bytes (the same in
+    every row) or an (n, k) uint8 array."""
+    parts = [np.broadcast_to(np.frombuffer(s, dtype=np.uint8), (n, len(s)))
+             if isinstance(s, bytes) else s for s in segments]
+    return np.concatenate(parts, axis=1)
+
+
+def doubles(numbers, values: np.ndarray) -> np.ndarray:
+    """(n, 9k) uint8: protobuf double fields `numbers` (k) with values (n, k), zeros included."""
+    values = np.ascontiguousarray(values, dtype="<f8")
+    n, k = values.shape
+    out = np.empty((n, k, 9), dtype=np.uint8)
+    out[:, :, 0] = [number << 3 | 1 for number in numbers]  # tag: field number, type fixed64
+    out[:, :, 1:] = values.view(np.uint8).reshape(n, k, 8)
+    return out.reshape(n, 9 * k)
+
+
+def field(number: int, payload: bytes) -> bytes:
+    """A protobuf length-delimited field (message, string, bytes or packed values)."""
+    return bytes([number << 3 | 2]) + varint(len(payload)) + payload
+
+
+def interleave(n: int, groups) -> tuple[bytes, np.ndarray]:
+    """Rows of several equal-size groups [(row indices (n_g,), bytes (n_g, w_g)), ...] covering
+    0..n-1, joined in row order. Returns (bytes, start offset of each row (n,))."""
+    pieces: list[bytes] = [b""] * n
+    lengths = np.zeros(n, dtype=np.int64)
+    for index, data in groups:
+        lengths[index] = data.shape[1]
+        raw, width = data.tobytes(), data.shape[1]
+        for k, i in enumerate(index.tolist()):
+            pieces[i] = raw[k * width:(k + 1) * width]
+    return b"".join(pieces), np.cumsum(lengths) - lengths
