@@ -1,0 +1,206 @@
+"""Co-simulation master: FMI 2.0 co-simulation FMUs, each playing a role through its port map.
+
+A component is one FMU instance with a role ("cylinder", "pile"; plant_models.model_spec) and an
+FmuSpec whose port map names the FMU variable of every role port, and of the parameter roles in
+PARAMETER_ROLES (a cylinder's initial stroke `x0`, which the simulated excavator sets). The
+master checks every component before anything is instantiated (each port an FMU variable of
+type Real with the right causality, each parameter a variable that can be set before
+initialization), extracts each FMU file once, instantiates and initialises every component,
+and frees all of them in `close()`, on error too.
+
+Value exchange per step goes through fmus.runs.FastSlave: pre-allocated numpy buffers and the
+FMU's own fmi2SetReal / fmi2DoStep / fmi2GetReal entry points with pre-converted arguments.
+A component's `inputs` buffer holds the role's inputs in role order (`input_index`), `outputs`
+the role's outputs in role order (`output_index`); the caller writes inputs, calls
+`step(t, h)` and reads outputs. The coupling itself (who feeds whom, in which order) belongs
+to the caller: for the excavator, orchestrator.simulated_excavator.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from fmus.runs import FastSlave
+from plant_models.model_spec import CYLINDER_INPUTS, PILE_INPUTS, ROLES, FmuSpec
+
+_ROLE_INPUTS = {"cylinder": CYLINDER_INPUTS, "pile": PILE_INPUTS}
+# Parameter roles: parameters the plant sets itself, mapped like ports (x0: initial stroke, m).
+PARAMETER_ROLES = {"cylinder": ("x0",), "pile": ()}
+_SETTABLE = ("parameter", "input")  # causalities whose start values may be set before init
+
+
+def fmu_path(spec: FmuSpec, component: str) -> Path:
+    """The .fmu file of `spec`: one of our models, built on demand, or an existing path."""
+    import fmus
+
+    if spec.fmu in fmus.MODELS:
+        try:
+            return fmus.build(spec.fmu)
+        except fmus.BuildError as error:
+            raise ValueError(f"{component}: cannot build FMU {spec.fmu!r}: {error}") from None
+    path = Path(spec.fmu).expanduser()
+    if path.suffix != ".fmu" or not path.is_file():
+        raise ValueError(f"{component}: FMU {spec.fmu!r} is neither one of our models "
+                         f"({', '.join(fmus.MODELS)}) nor an existing .fmu file")
+    return path
+
+
+def check_component(component: str, role: str, spec: FmuSpec, description) -> dict[str, str]:
+    """Check `spec`'s port map and parameters against an FMU's model description.
+
+    Returns {port role: FMU variable name} for the role's ports and parameter roles. Raises
+    ValueError naming the component, the role and the variable.
+    """
+    if role not in ROLES:
+        raise ValueError(f"{component}: unknown role {role!r}; roles: {', '.join(ROLES)}")
+    if description.fmiVersion != "2.0" or description.coSimulation is None:
+        raise ValueError(f"{component}: {description.modelName} is not an FMI 2.0 "
+                         "co-simulation FMU")
+    variables = {v.name: v for v in description.modelVariables}
+    known = ROLES[role] + PARAMETER_ROLES[role]
+    unknown = sorted(set(spec.ports) - set(known))
+    if unknown:
+        raise ValueError(f"{component}: port map names unknown role {unknown[0]!r}; "
+                         f"{role} roles: {', '.join(known)}")
+    ports = {}
+    for port in ROLES[role]:
+        name = spec.variable(port)
+        wanted = "input" if port in _ROLE_INPUTS[role] else "output"
+        variable = variables.get(name)
+        if variable is None:
+            raise ValueError(f"{component}: role {port!r} maps to variable {name!r}, which "
+                             f"{description.modelName} does not have")
+        if variable.causality != wanted or variable.type != "Real":
+            raise ValueError(f"{component}: role {port!r} needs a Real {wanted}, but variable "
+                             f"{name!r} of {description.modelName} is a {variable.type} "
+                             f"{variable.causality}")
+        ports[port] = name
+    for port in PARAMETER_ROLES[role]:
+        ports[port] = spec.variable(port)
+        _check_settable(component, description, variables, ports[port], port)
+    for name in spec.parameters:
+        _check_settable(component, description, variables, name, None)
+    return ports
+
+
+def _check_settable(component, description, variables, name, port) -> None:
+    what = f"role {port!r} maps to variable {name!r}" if port else f"parameter {name!r}"
+    variable = variables.get(name)
+    if variable is None:
+        raise ValueError(f"{component}: {what}, which {description.modelName} does not have"
+                         if port else f"{component}: {description.modelName} has no {what}")
+    if variable.causality not in _SETTABLE or variable.variability == "constant":
+        raise ValueError(f"{component}: {what} has causality {variable.causality} in "
+                         f"{description.modelName}; only parameters and inputs can be set")
+
+
+class Component:
+    """One initialised FMU instance (see the module docstring)."""
+
+    def __init__(self, name: str, role: str, spec: FmuSpec, path: Path, description,
+                 ports: Mapping[str, str], unzip_dir: str,
+                 start_values: Mapping[str, float]) -> None:
+        self.name, self.role, self.spec, self.path = name, role, spec, path
+        self.description = description
+        input_roles = _ROLE_INPUTS[role]
+        output_roles = tuple(p for p in ROLES[role] if p not in input_roles)
+        self.input_index = {port: i for i, port in enumerate(input_roles)}
+        self.output_index = {port: i for i, port in enumerate(output_roles)}
+        try:
+            self._slave = FastSlave(path, [ports[p] for p in input_roles],
+                                    [ports[p] for p in output_roles], start_values,
+                                    instance_name=name, unzip_dir=unzip_dir)
+        except ValueError as error:
+            raise ValueError(f"{name}: {error}") from None
+        except Exception as error:  # fmpy raises plain Exceptions for FMI status errors
+            raise ValueError(f"{name}: {description.modelName} did not initialise with its "
+                             f"start values ({error})") from None
+        self.inputs: np.ndarray = self._slave.inputs
+        """(n_inputs,) buffer, role input order: write here, then step()."""
+        self.outputs: np.ndarray = self._slave.outputs()
+        """(n_outputs,) buffer, role output order, refreshed by every step()."""
+        self.step = self._slave.step
+        """step(t_s, h_s): set the inputs, step from t_s by h_s, refresh `outputs`."""
+        self._vr = {v.name: v.valueReference for v in description.modelVariables}
+
+    def read(self, names: Sequence[str]) -> np.ndarray:
+        """Current values (n,) of any Real variables of the FMU, by FMU variable name."""
+        if self._slave.slave is None:
+            raise RuntimeError(f"{self.name}: the FMU instance is closed")
+        return np.array(self._slave.slave.getReal([self._vr[n] for n in names]))
+
+    def close(self) -> None:
+        """Terminate and free the instance; safe twice. Stepping afterwards is a RuntimeError
+        (not a call into freed memory)."""
+        self._slave.close()
+        self.step = self._closed
+
+    def _closed(self, *args) -> None:
+        raise RuntimeError(f"{self.name}: the FMU instance is closed")
+
+
+class Master:
+    """FMUs of one run: checked, instantiated once, freed by close() (also a context manager).
+
+    components: name -> (role, FmuSpec). step_s: the communication step (s).
+    start_values: name -> {input role or parameter role (e.g. "tip_y", "x0"): value}, set
+    before initialization on top of the spec's parameters.
+    """
+
+    def __init__(self, components: Mapping[str, tuple[str, FmuSpec]], step_s: float,
+                 start_values: Mapping[str, Mapping[str, float]] | None = None) -> None:
+        if not step_s > 0.0:
+            raise ValueError(f"communication step must be > 0 s, got {step_s!r}")
+        from fmpy import extract, read_model_description
+
+        self.step_s = float(step_s)
+        self.components: dict[str, Component] = {}
+        self._unzip_dirs: dict[Path, str] = {}
+        start_values = start_values or {}
+        checked = []
+        for name, (role, spec) in components.items():
+            path = fmu_path(spec, name)
+            try:
+                description = read_model_description(str(path))
+            except Exception as error:
+                raise ValueError(f"{name}: cannot read {path.name}: {error}") from None
+            ports = check_component(name, role, spec, description)
+            values = dict(spec.parameters)
+            for key, value in start_values.get(name, {}).items():
+                if key not in _ROLE_INPUTS[role] + PARAMETER_ROLES[role]:
+                    raise ValueError(f"{name}: start values are set by input or parameter "
+                                     f"role, got {key!r}")
+                values[ports[key]] = value
+            checked.append((name, role, spec, path, description, ports, values))
+        try:
+            for name, role, spec, path, description, ports, values in checked:
+                if path not in self._unzip_dirs:
+                    self._unzip_dirs[path] = extract(
+                        str(path), unzipdir=tempfile.mkdtemp(prefix="excosim-fmu-"))
+                self.components[name] = Component(name, role, spec, path, description, ports,
+                                                  self._unzip_dirs[path], values)
+        except BaseException:
+            self.close()
+            raise
+
+    def __getitem__(self, name: str) -> Component:
+        return self.components[name]
+
+    def close(self) -> None:
+        """Free every instance and remove the extracted FMUs; safe twice."""
+        for component in self.components.values():
+            component.close()
+        for folder in self._unzip_dirs.values():
+            shutil.rmtree(folder, ignore_errors=True)
+        self._unzip_dirs.clear()
+
+    def __enter__(self) -> Master:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

@@ -1,0 +1,277 @@
+"""The simulated excavator: three HydraulicCylinder FMUs and one Pile FMU behind the Plant
+protocol (plant_models.plant), one instance each for the whole run (the ground has memory).
+
+One communication step h from t_k (the reference is interpolated onto the grid t_k = k h):
+
+1. strokes (cylinder outputs at t_k) -> joint angles, moment arms, tip and bucket angle
+   (orchestrator.arm_coupling);
+2. the Pile steps with the tip at t_k: it cuts along the tip's path since the last step and
+   returns the bucket's content and the soil force;
+3. cylinder loads from gravity (links and payload) and the soil force; each servo
+   (plant_models.servo) turns the stroke reference, the measured stroke and force into a spool
+   command; the cylinders step from t_k to t_k + h with command and load held.
+
+At the end of a period the load cell reads the Pile's bucket mass (plus Gaussian noise from one
+generator seeded per plant), then the Pile steps once more with `dump` high and the bucket
+empties; the profile h[1..n] and the cell centres go into the measurement. The next period
+continues from there: its reference must start within `start_tolerance_rad` of the arm.
+
+Measurement rows are samples at t_k (period time from 0): joints and cylinder outputs at t_k,
+the Pile's outputs after its step to the tip at t_k, and the inputs (u, F_ext) held from t_k.
+Signals: "<joint>.x, .v, .p_A, .p_B, .F" (cylinder outputs by role), "<joint>.u, .F_ext",
+"pile.<output role>", "tip.y", "tip.z", "tip.bucket_angle".
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from functools import lru_cache
+
+import numpy as np
+
+from orchestrator.arm_coupling import ArmCoupling
+from orchestrator.master import Master, check_component, fmu_path
+from plant_models.cylinder_model import CylinderModel
+from plant_models.linkage import JOINT_NAMES
+from plant_models.model_spec import CYLINDER_OUTPUTS, PILE_OUTPUTS
+from plant_models.plant import JointReference, PeriodMeasurement
+from plant_models.servo import JointServo, ServoDesign, design_servo
+from plant_models.sim_config import SimulatedExcavatorConfig
+
+_COLUMNS = (
+    *(f"{j}.{n}" for j in JOINT_NAMES for n in (*CYLINDER_OUTPUTS, "u", "F_ext")),
+    *(f"pile.{n}" for n in PILE_OUTPUTS),
+    "tip.y", "tip.z", "tip.bucket_angle",
+)
+_PROFILE = re.compile(r"^h\[(\d+)\]$")
+
+
+def _start_values(description) -> dict[str, float]:
+    values = {}
+    for variable in description.modelVariables:
+        if variable.start is not None and variable.type in ("Real", "Integer"):
+            values[variable.name] = float(variable.start)
+    return values
+
+
+class SimulatedExcavator:
+    """Plant of kind "sim" (see the module docstring). Use as a context manager or close()."""
+
+    kind = "sim"
+
+    def __init__(self, config: SimulatedExcavatorConfig) -> None:
+        self.config = config
+        self.coupling = _coupling(config.geometry)
+        self._master: Master | None = None
+        self._closed = False
+        self._rng = np.random.default_rng(config.seed)
+        self._steps = 0  # communication steps taken by the cylinders
+        self._pile_time = 0.0
+        designs = []
+        for index, (joint, spec) in enumerate(zip(JOINT_NAMES, config.cylinders, strict=True)):
+            description = _description(joint, spec)
+            check_component(joint, "cylinder", spec, description)
+            given = config.cylinder_models[index] if config.cylinder_models else None
+            model = given or _model_from_fmu(joint, description, spec.parameters)
+            stroke = self.coupling.tables[index].stroke_m
+            if not math.isclose(model.stroke_m, stroke, rel_tol=1e-9):
+                raise ValueError(f"{joint}: cylinder stroke {model.stroke_m} m differs from the "
+                                 f"linkage's stroke {stroke} m")
+            design_stroke = None if config.design_strokes_m is None \
+                else config.design_strokes_m[index]
+            designs.append(design_servo(
+                model, config.communication_step_s, design_stroke, config.servo_damping,
+                config.servo_gain_margin_db, config.servo_phase_margin_deg))
+        self.servo_designs: tuple[ServoDesign, ...] = tuple(designs)
+        pile_description = _description("pile", config.pile)
+        check_component("pile", "pile", config.pile, pile_description)
+        self._profile_names = sorted(
+            (v.name for v in pile_description.modelVariables if _PROFILE.match(v.name)),
+            key=lambda name: int(_PROFILE.match(name).group(1)))
+        pile_values = {**_start_values(pile_description), **config.pile.parameters}
+        self._grid_limits = (pile_values.get("y_min"), pile_values.get("y_max"))
+        if config.start_pose_rad is not None:
+            self._start(np.asarray(config.start_pose_rad, dtype=float))
+
+    # ---- life cycle ----------------------------------------------------------------------------
+
+    def _start(self, pose: np.ndarray) -> None:
+        """Instantiate the FMUs with the arm at rest at `pose` (3,) rad, in equilibrium with
+        its gravity loads."""
+        zero = np.zeros((1, 3))
+        strokes = self.coupling.stroke_reference(pose[None, :], zero, zero)[0][0]
+        kinematics = self.coupling.kinematics(*strokes)
+        loads = self.coupling.loads(kinematics, 0.0, 0.0, 0.0)
+        tip_y, tip_z, angle = kinematics[3:6]
+        cfg = self.config
+        components = {j: ("cylinder", spec) for j, spec in zip(JOINT_NAMES, cfg.cylinders,
+                                                                 strict=True)}
+        components["pile"] = ("pile", cfg.pile)
+        start = {j: {"x0": float(s), "F_ext": float(f)}
+                 for j, s, f in zip(JOINT_NAMES, strokes, loads, strict=True)}
+        start["pile"] = {"tip_y": tip_y, "tip_z": tip_z, "bucket_angle": -angle, "dump": 0.0}
+        self._master = Master(components, cfg.communication_step_s, start)
+        self._servos = tuple(JointServo(d) for d in self.servo_designs)
+
+    def close(self) -> None:
+        """Free every FMU instance; safe twice."""
+        self._closed = True
+        if self._master is not None:
+            self._master.close()
+
+    def __enter__(self) -> SimulatedExcavator:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # ---- one period ----------------------------------------------------------------------------
+
+    def joints_rad(self) -> np.ndarray | None:
+        """(3,) rad: where the arm is now (None before the first period without a start pose)."""
+        if self._master is None or self._closed:
+            return None
+        strokes = [self._master[j].outputs[0] for j in JOINT_NAMES]
+        return np.array(self.coupling.kinematics(*strokes)[:3])
+
+    def run_period(self, reference: JointReference) -> PeriodMeasurement:
+        """Track `reference`, weigh the bucket, empty it, and report (see the module doc)."""
+        if self._closed:
+            raise RuntimeError("the simulated excavator is closed")
+        position, velocity, acceleration, t = self._on_grid(reference)
+        if self._master is None:
+            self._start(position[0])
+        now = self.joints_rad()
+        gap = np.abs(position[0] - now)
+        if np.any(gap > self.config.start_tolerance_rad):
+            worst = int(np.argmax(gap))
+            raise ValueError(
+                f"reference starts {math.degrees(gap[worst]):.2f} deg from the arm's "
+                f"{JOINT_NAMES[worst]} angle ({math.degrees(now[worst]):.2f} deg); allowed: "
+                f"{math.degrees(self.config.start_tolerance_rad):.2f} deg")
+        stroke_ref = self.coupling.stroke_reference(position, velocity, acceleration)
+        rows, joints = self._track(*stroke_ref)
+        table = np.array(rows)
+        signals = {name: table[:, i].copy() for i, name in enumerate(_COLUMNS)}
+        weighed = float(signals["pile.bucket_mass"][-1])
+        weighed += self.config.load_cell_noise_kg * float(self._rng.standard_normal())
+        self._dump()
+        profile, grid = self._profile()
+        return PeriodMeasurement(t_s=t, joints_rad=np.array(joints), reference_rad=position,
+                                 weighed_mass_kg=weighed, signals=signals,
+                                 pile_profile_m=profile, pile_grid_m=grid)
+
+    def _on_grid(self, reference: JointReference):
+        """Reference position, velocity, acceleration (m, 3) on the communication grid t (m,),
+        linear interpolation, held at the end."""
+        t_ref = np.asarray(reference.t_s, dtype=float)
+        arrays = [np.asarray(a, dtype=float) for a in (
+            reference.position_rad, reference.velocity_rad_s, reference.acceleration_rad_s2)]
+        if not (np.all(np.isfinite(t_ref)) and all(np.all(np.isfinite(a)) for a in arrays)):
+            raise ValueError("the joint reference contains NaN or infinite values")
+        if t_ref[0] != 0.0 or np.any(np.diff(t_ref) <= 0.0):
+            raise ValueError("the joint reference's t_s must start at 0 s and increase")
+        h = self.config.communication_step_s
+        count = int(math.ceil(t_ref[-1] / h - 1e-9)) + 1
+        t = np.arange(count) * h
+        on_grid = [np.column_stack([np.interp(t, t_ref, a[:, j]) for j in range(3)])
+                   for a in arrays]
+        return (*on_grid, t)
+
+    def _track(self, strokes: np.ndarray, rates: np.ndarray, accelerations: np.ndarray):
+        """The step loop of one period; returns the signal rows and the joint angles."""
+        master, h = self._master, self.config.communication_step_s
+        boom, stick, bucket, pile = (master[n] for n in (*JOINT_NAMES, "pile"))
+        boom_out, stick_out, bucket_out, pile_out = (
+            c.outputs for c in (boom, stick, bucket, pile))
+        boom_in, stick_in, bucket_in, pile_in = (c.inputs for c in (boom, stick, bucket, pile))
+        boom_step, stick_step, bucket_step, pile_step = (
+            c.step for c in (boom, stick, bucket, pile))
+        kinematics, loads = self.coupling.kinematics, self.coupling.loads
+        command0, command1, command2 = (s.command for s in self._servos)
+        x0r, x1r, x2r = (strokes[:, j].tolist() for j in range(3))
+        v0r, v1r, v2r = (rates[:, j].tolist() for j in range(3))
+        a0r, a1r, a2r = (accelerations[:, j].tolist() for j in range(3))
+        rows, joints = [], []
+        append_row, append_joints = rows.append, joints.append
+        pile_in[pile.input_index["dump"]] = 0.0
+        steps, pile_time = self._steps, self._pile_time
+        try:
+            for k in range(len(x0r)):
+                x0, v0, pa0, pb0, f0 = boom_out.tolist()
+                x1, v1, pa1, pb1, f1 = stick_out.tolist()
+                x2, v2, pa2, pb2, f2 = bucket_out.tolist()
+                pose = kinematics(x0, x1, x2)
+                q0, q1, q2, tip_y, tip_z, angle = pose[:6]
+                pile_in[0] = tip_y
+                pile_in[1] = tip_z
+                pile_in[2] = -angle  # the Pile's bucket_angle: tip-to-pin line (geometry)
+                pile_step(pile_time, h)
+                pile_time += h
+                mass, force_y, force_z, removed, dumped, in_pile, surface = pile_out.tolist()
+                e0, e1, e2 = loads(pose, force_y, force_z, mass)
+                u0 = command0(x0r[k], v0r[k], a0r[k], x0, f0)
+                u1 = command1(x1r[k], v1r[k], a1r[k], x1, f1)
+                u2 = command2(x2r[k], v2r[k], a2r[k], x2, f2)
+                append_joints((q0, q1, q2))
+                append_row((x0, v0, pa0, pb0, f0, u0, e0, x1, v1, pa1, pb1, f1, u1, e1,
+                            x2, v2, pa2, pb2, f2, u2, e2, mass, force_y, force_z, removed,
+                            dumped, in_pile, surface, tip_y, tip_z, angle))
+                boom_in[0] = u0
+                boom_in[1] = e0
+                stick_in[0] = u1
+                stick_in[1] = e1
+                bucket_in[0] = u2
+                bucket_in[1] = e2
+                t = steps * h
+                boom_step(t, h)
+                stick_step(t, h)
+                bucket_step(t, h)
+                steps += 1
+        finally:
+            self._steps, self._pile_time = steps, pile_time
+        return rows, joints
+
+    def _dump(self) -> None:
+        """One Pile step with `dump` high (tip where it is): the bucket empties."""
+        pile, h = self._master["pile"], self.config.communication_step_s
+        dump = pile.input_index["dump"]
+        pile.inputs[dump] = 1.0
+        pile.step(self._pile_time, h)
+        self._pile_time += h
+        pile.inputs[dump] = 0.0
+
+    def _profile(self) -> tuple[np.ndarray | None, np.ndarray | None]:
+        if not self._profile_names:
+            return None, None
+        profile = self._master["pile"].read(self._profile_names)
+        y_min, y_max = self._grid_limits
+        if y_min is None or y_max is None:
+            return profile, None
+        n = len(profile)
+        return profile, y_min + (np.arange(n) + 0.5) * (y_max - y_min) / n
+
+
+@lru_cache(maxsize=8)
+def _coupling(geometry) -> ArmCoupling:
+    """One ArmCoupling per geometry: its tables take a fifth of a second and never change."""
+    return ArmCoupling(geometry)
+
+
+def _description(component: str, spec):
+    from fmpy import read_model_description
+
+    path = fmu_path(spec, component)
+    try:
+        return read_model_description(str(path))
+    except Exception as error:
+        raise ValueError(f"{component}: cannot read {path.name}: {error}") from None
+
+
+def _model_from_fmu(joint: str, description, parameters) -> CylinderModel:
+    try:
+        return CylinderModel.from_fmu_parameters({**_start_values(description), **parameters})
+    except ValueError as error:
+        raise ValueError(f"{joint}: {error}; give SimulatedExcavatorConfig.cylinder_models "
+                         "for an FMU with other parameter names") from None

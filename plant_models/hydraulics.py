@@ -1,0 +1,188 @@
+"""Hydraulics of the two presets and the default configuration of the simulated excavator.
+
+`default_config(preset)` gives the `SimulatedExcavatorConfig` of "paper" or "lab": three
+HydraulicCylinder FmuSpecs (boom, stick, bucket) with the cylinder data below, and the Pile
+FmuSpec. Each cylinder's `stroke` is its linkage's stroke (plant_models.presets); its initial
+stroke `x0` is set by the plant from the start pose.
+
+Link inertia: the cylinder FMU has one moving mass. It is set to the rod's own mass plus the
+inertia the joint sees with the other joints locked (the diagonal term M_ii of the arm's mass
+matrix, links as point masses at their centres of mass plus a uniform rod's m L^2 / 12 about
+it) reflected onto the rod, M_ii / r_i^2 with r_i = d(stroke)/d(angle), at DESIGN_POSE_RAD.
+This is stable (the inertia stays inside the FMU's integrator) and exact at that pose; the
+pose dependence (a factor 1.1 on the boom, up to 3 on the stick and 5 on the bucket over the
+paper path) and the off-diagonal coupling are left out: the paper's trajectories are slow
+(< 33 deg/s), so inertial forces stay small next to gravity.
+
+paper (a 20 t class machine; round figures of the class's specification sheets)
+    boom     two 120/85 mm cylinders, modelled as one of the same total areas (bore 169.7 mm,
+             rod 120.2 mm); stroke 1.289 m (linkage)
+    stick    one 135/95 mm cylinder, stroke 1.443 m; bucket one 115/80 mm, stroke 1.038 m
+    dead volumes: the lines from the main valve (1" = 25 mm bore) along the arm plus end
+             clearance: boom 2 x 1 L (about 2 m of line each), stick 3 L (6 m), bucket 4.5 L
+             (9 m, the line runs along boom and stick)
+    beta 1.0 GPa, supply 30 MPa (main relief of the class 31-35 MPa), tank 0.3 MPa, port relief
+             35 MPa (the FMU's defaults and reasons, fmus/HydraulicCylinder/variables.toml)
+    valve    rated flow per metering edge at 3.5 MPa: boom 200 L/min (two pumps join for boom
+             raising, about 2 x 220 L/min on the class), stick 160 L/min, bucket 100 L/min:
+             unloaded speeds 0.41, 0.51, 0.44 m/s, about twice the paper trajectory's peak
+             stroke rates (0.10, 0.25, 0.17 m/s at D = (-9, -0.1) m, case 2)
+    friction Coulomb 2 kN and viscous 5 kN s/m per cylinder (FMU defaults; doubled on the boom)
+    rod, piston and oil: boom 2 x 150 kg, stick 200 kg, bucket 120 kg
+
+lab (the paper's lab excavator, section 3.3: 20 bar maximum oil pressure, 100 ml of oil,
+    10 kg maximum load, BLDC pump; no cylinder data are published)
+    boom 25/12 mm, stick 20/10 mm, bucket 16/8 mm: a 25 mm boom cylinder at 20 bar (982 N)
+             holds the scaled arm plus 7.4 kg in the bucket at the digging pose D, more closer in
+    dead volumes 6 mL per side (0.5 m of 4 mm bore hose); the swept piston volumes (41, 39 and
+             18 mL) are within the 100 mL of oil
+    beta 0.7 GPa (the low end of the usual range: thin flexible hoses), supply 2.0 MPa (the
+             20 bar maximum), tank 0.05 MPa, port relief 2.2 MPa
+    valve    rated at 0.5 MPa per edge (small proportional valves are rated at 1 MPa across two
+             edges): boom 0.5 L/min, stick 0.6 L/min, bucket 0.3 L/min; unloaded speeds 28, 53,
+             41 mm/s, 2.5-3 times the lab trajectory's peak stroke rates; 1.4 L/min in all, a
+             small gear pump's flow
+    friction Coulomb 10 N (about 1-2 % of the stall forces), smoothing speed 1 mm/s, viscous
+             50 N s/m; rod and piston 0.05 kg
+    Pile: the paper pile scaled like the arm (LAB_SCALE) in y, z, heap and soil-force speed ramp;
+    a 0.2 m slice (the machine is 240 mm wide) of 1600 kg/m^3 soil; heaped capacity 0.8 m^2 x
+    LAB_SCALE^2 x 0.2 m (1.9 kg).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from plant_models import presets
+from plant_models.cylinder_model import CylinderModel
+from plant_models.geometry import ExcavatorGeometry, arm_points
+from plant_models.linkage import JOINT_NAMES, moment_arm_m, stroke_from_joint_angle
+from plant_models.model_spec import FmuSpec
+from plant_models.sim_config import SimulatedExcavatorConfig
+
+# The paper scenario's first-period pose at D = (-9, -0.1) m (planner.digging_path,
+# paper_joint_via_points()[2]); the lab path is the paper path scaled, so the same joint angles.
+DESIGN_POSE_RAD: tuple[float, float, float] = (
+    math.radians(10.4633846), math.radians(-44.33907499), math.radians(-37.17639685))
+
+_LPM = 1.0e-3 / 60.0  # m^3/s per L/min
+
+
+def _paper_cylinders() -> dict[str, dict[str, float]]:
+    common = {"beta": 1.0e9, "p_supply": 30.0e6, "p_tank": 0.3e6, "p_relief": 35.0e6,
+              "k_relief": 5.0e-9, "dp_rated": 3.5e6, "dp_laminar": 1.0e5, "v_coulomb": 0.01}
+    twin = math.sqrt(2.0)  # two boom cylinders in parallel: same total areas
+    return {
+        "boom": {**common, "bore": 0.120 * twin, "rod": 0.085 * twin, "V_dead_A": 2.0e-3,
+                 "V_dead_B": 2.0e-3, "q_rated": 200.0 * _LPM, "F_coulomb": 4000.0,
+                 "b_viscous": 10000.0, "mass": 300.0},
+        "stick": {**common, "bore": 0.135, "rod": 0.095, "V_dead_A": 3.0e-3, "V_dead_B": 3.0e-3,
+                  "q_rated": 160.0 * _LPM, "F_coulomb": 2000.0, "b_viscous": 5000.0,
+                  "mass": 200.0},
+        "bucket": {**common, "bore": 0.115, "rod": 0.080, "V_dead_A": 4.5e-3,
+                   "V_dead_B": 4.5e-3, "q_rated": 100.0 * _LPM, "F_coulomb": 2000.0,
+                   "b_viscous": 5000.0, "mass": 120.0},
+    }
+
+
+def _lab_cylinders() -> dict[str, dict[str, float]]:
+    common = {"beta": 0.7e9, "p_supply": 2.0e6, "p_tank": 0.05e6, "p_relief": 2.2e6,
+              "k_relief": 5.0e-11, "dp_rated": 0.5e6, "dp_laminar": 5.0e4, "V_dead_A": 6.0e-6,
+              "V_dead_B": 6.0e-6, "F_coulomb": 10.0, "v_coulomb": 0.001, "b_viscous": 50.0,
+              "mass": 0.05}
+    return {
+        "boom": {**common, "bore": 0.025, "rod": 0.012, "q_rated": 0.5 * _LPM},
+        "stick": {**common, "bore": 0.020, "rod": 0.010, "q_rated": 0.6 * _LPM},
+        "bucket": {**common, "bore": 0.016, "rod": 0.008, "q_rated": 0.3 * _LPM},
+    }
+
+
+def _lab_pile() -> dict[str, float]:
+    s = presets.LAB_SCALE
+    return {"y_min": -13.0 * s, "y_max": -2.0 * s, "z_floor": -5.0 * s,
+            "heap_center_y": -9.0 * s, "heap_half_width": 2.0 * s, "width": 0.2,
+            "density": 1600.0, "capacity": 0.8 * s * s * 0.2, "force_speed_ramp": 0.05 * s}
+
+
+# Communication step per preset (s), also the servo's sample time. paper: 10 ms keeps every
+# joint's margins with the pressure feedback's damping (design_servo; the bucket's mode,
+# 54 rad/s, gets 0.45 instead of 0.7) at a fifth of the cost of 2 ms. lab: the small
+# cylinders' hydraulic modes (290-1000 rad/s: link masses scale with LAB_SCALE^3, piston areas
+# much less) need 1 ms for the pressure feedback to damp them.
+COMMUNICATION_STEP_S = {"paper": 0.01, "lab": 0.001}
+
+
+def link_inertia_diagonal(geometry: ExcavatorGeometry, joints, payload_kg: float = 0.0
+                          ) -> np.ndarray:
+    """Diagonal of the arm's mass matrix (3,) kg m^2 at joints (3,) rad: the inertia each joint
+    turns with the joints after it locked. Links: point masses at their centres of mass plus a
+    uniform rod's m L^2 / 12 (L the link's pin-to-pin length); payload_kg at the bucket's."""
+    points = arm_points(geometry, joints)
+    links = (
+        ("boom_com", geometry.boom_mass.mass_kg, geometry.boom_length_m),
+        ("stick_com", geometry.stick_mass.mass_kg, geometry.stick_length_m),
+        ("bucket_com", geometry.bucket_mass.mass_kg + payload_kg, geometry.bucket_length_m),
+    )
+    inertia = np.zeros(3)
+    for index, pin in enumerate(("boom_foot", "stick_pin", "bucket_pin")):
+        for com, mass, length in links[index:]:
+            offset = points[com] - points[pin]
+            inertia[index] += mass * (length * length / 12.0 + float(offset @ offset))
+    return inertia
+
+
+def reflected_mass_kg(geometry: ExcavatorGeometry, joint: str, joints) -> float:
+    """Link inertia of `joint` reflected onto its cylinder's rod, M_ii / r^2 (kg), at joints
+    (3,) rad; r = d(stroke)/d(angle) (m/rad)."""
+    index = JOINT_NAMES.index(joint)
+    arm = moment_arm_m(geometry, joint, float(joints[index]))
+    return float(link_inertia_diagonal(geometry, joints)[index] / (arm * arm))
+
+
+def cylinder_parameters(preset: str) -> dict[str, dict[str, float]]:
+    """HydraulicCylinder FMU parameters per joint for `preset` ("paper", "lab"), stroke and the
+    reflected link inertia included (x0 is left to the plant)."""
+    tables = {"paper": _paper_cylinders, "lab": _lab_cylinders}
+    if preset not in tables:
+        raise ValueError(f"unknown preset {preset!r}; known presets: paper, lab")
+    geometry = presets.get(preset)
+    strokes = (geometry.boom_cylinder.stroke_m, geometry.stick_cylinder.stroke_m,
+               geometry.bucket_linkage.stroke_m)
+    parameters = tables[preset]()
+    for joint, stroke in zip(JOINT_NAMES, strokes, strict=True):
+        parameters[joint]["stroke"] = stroke
+        parameters[joint]["mass"] += reflected_mass_kg(geometry, joint, DESIGN_POSE_RAD)
+    return parameters
+
+
+def cylinder_model(preset: str, joint: str) -> CylinderModel:
+    """The servo's model of `joint`'s cylinder in `preset` (our FMU's parameters)."""
+    return CylinderModel.from_fmu_parameters(cylinder_parameters(preset)[joint])
+
+
+def design_strokes_m(preset: str) -> tuple[float, float, float]:
+    """Strokes (m) of boom, stick and bucket at DESIGN_POSE_RAD in `preset`."""
+    geometry = presets.get(preset)
+    return tuple(stroke_from_joint_angle(geometry, joint, angle)
+                 for joint, angle in zip(JOINT_NAMES, DESIGN_POSE_RAD, strict=True))
+
+
+def default_config(preset: str) -> SimulatedExcavatorConfig:
+    """The simulated excavator of `preset` ("paper" or "lab"), see the module docstring.
+
+    The Pile of "paper" keeps the FMU's own defaults (its density x width is already scaled to
+    the paper's dug masses); the plant starts at the first reference's first sample.
+    """
+    cylinders = cylinder_parameters(preset)
+    pile = {} if preset == "paper" else _lab_pile()
+    return SimulatedExcavatorConfig(
+        geometry=presets.get(preset),
+        boom=FmuSpec("HydraulicCylinder", cylinders["boom"]),
+        stick=FmuSpec("HydraulicCylinder", cylinders["stick"]),
+        bucket=FmuSpec("HydraulicCylinder", cylinders["bucket"]),
+        pile=FmuSpec("Pile", pile),
+        communication_step_s=COMMUNICATION_STEP_S[preset],
+        design_strokes_m=design_strokes_m(preset),
+    )
