@@ -4,7 +4,7 @@ Variables x = log(h / h_start), h the segment durations (s). Cost (scaled to 1 a
 k_T * T + k_J * mean_j int (jerk_j / JC_j)^2 dt (planner.trajectory explains the normalisation).
 Constraints g = 1 - ratio >= 0, one per knot span, joint, derivative order (velocity,
 acceleration, jerk) and side (the span's maximum over the limit, and minus its minimum over the
-limit). The maxima and minima are exact (planner.bspline.span_extremes); their gradients follow
+limit). The maxima and minima are exact (planner.span_extremes); their gradients follow
 from the envelope theorem (the slope vanishes at an interior extreme, span ends are fixed at
 s = 0 and 1 in span coordinates) and the analytic sensitivity of the spline coefficients.
 """
@@ -14,7 +14,8 @@ from __future__ import annotations
 import numpy as np
 
 from planner import bspline
-from planner.bspline import ORDERS, RestToRestQuintic
+from planner.bspline import RestToRestQuintic
+from planner.span_extremes import ORDERS, extreme_value_gradients, span_extremes
 
 # A segment may not become shorter than this fraction of the start's mean segment duration: it
 # bounds the span-length ratios that condition the spline system. In practice only a segment
@@ -25,11 +26,11 @@ _ORDER_COLUMN = np.array(ORDERS, dtype=float)[:, None]
 
 def segment_estimate(q: np.ndarray, limits: np.ndarray) -> np.ndarray:
     """Rough per-segment durations (s), (n_via - 1,): the slowest joint's single-limit times."""
-    step = np.abs(np.diff(q, axis=0))
-    per_joint = np.maximum.reduce([step / limits[0], np.sqrt(step / limits[1]),
-                                   np.cbrt(step / limits[2])])
+    step = np.abs(q[1:] - q[:-1])
+    per_joint = np.maximum(step / limits[0], np.sqrt(step / limits[1]))
+    np.maximum(per_joint, np.cbrt(step / limits[2]), out=per_joint)
     estimate = per_joint.max(axis=1)
-    return np.maximum(estimate, 0.1 * estimate.mean())
+    return np.maximum(estimate, (0.1 / estimate.size) * estimate.sum())
 
 
 def uniform_scale(ratios: np.ndarray) -> float:
@@ -53,14 +54,12 @@ class TimingProblem:
         """q: via-points (n_via, n_joints) rad; limits (3, n_joints) rad/s, rad/s^2, rad/s^3."""
         self.system, self.q, self.limits, self.k_T, self.k_J = system, q, limits, k_T, k_J
         self._jerk_weight = 1.0 / (q.shape[1] * limits[2] ** 2)  # mean over joints, in limit units
-        self._eye = np.eye(system.n_span)
         # ratio = sign * value / limit <= 1 for the maxima (sign +1) and minima (sign -1).
         self._ratio_weight = (np.array([1.0, -1.0])[:, None, None, None]
                               * (1.0 / limits)[None, :, None, :])
         self.h_start = segment_estimate(q, limits)
         self._key, self.cost_scale = None, 1.0
-        zeros = np.zeros_like(self.h_start)
-        self._evaluate(zeros)
+        self._evaluate(np.zeros_like(self.h_start))
         peaks = self._ratio.max(axis=(0, 2, 3))  # per order
         scale = float(np.max(peaks ** (1.0 / _ORDER_COLUMN[:, 0])))
         if k_J > 0.0:
@@ -69,7 +68,7 @@ class TimingProblem:
             time_sum, jerk = self._time * scale, self._jerk * scale**-5.0
             scale *= max(1.0, (5.0 * k_J * jerk / (k_T * time_sum)) ** (1.0 / 6.0))
         self.h_start = self.h_start * scale
-        order_factor = scale ** -_ORDER_COLUMN[None, :, :, None]  # (1, 3, 1, 1)
+        order_factor = scale ** -_ORDER_COLUMN[:, :, None]  # (3, 1, 1): order, span, joint
         self._ratio = self._ratio * order_factor
         self._dratio = self._dratio * order_factor[..., None]
         self._time, self._dtime = self._time * scale, self._dtime * scale
@@ -85,25 +84,26 @@ class TimingProblem:
         key = x.tobytes()
         if key == self._key:
             return
+        system = self.system
         h = self.h_start * np.exp(x)
-        spans = self.system.span_lengths(h)
-        span_of_x = self.system.span_of_segments * h[None, :]  # dL/dx
-        coef, dcoef = self.system.solve(spans, self.q, sensitivity=True)
-        values, points = bspline.span_extremes(coef)  # (2, 3, m, nq)
-        scale = spans[None, :] ** -_ORDER_COLUMN  # (3, m): derivative = L^-o P_o
-        dvalue = np.einsum("eomqk,mkql->eomql", bspline.monomials(points), dcoef)
-        dvalue *= scale[None, :, :, None, None]
-        dscale = -_ORDER_COLUMN * scale / spans  # d(L_j^-o)/dL_j
-        dvalue += (values * dscale[None, :, :, None])[..., None] * self._eye[:, None, :]
-        self._ratio = self._ratio_weight * values * scale[None, :, :, None]
-        self._dratio = (self._ratio_weight[..., None] * dvalue) @ span_of_x
+        spans = system.span_of_segments @ h
+        span_of_x = system.span_of_segments * h  # dL/dx
+        coef, dcoef = system.solve_with_sensitivity(spans, self.q, span_of_x)  # d/dx
+        values, points = span_extremes(coef)  # (2, 3, m, nq)
+        dvalue = extreme_value_gradients(points, dcoef)  # (2, 3, m, nq, n)
+        inverse = 1.0 / spans
+        # ratio = sign value L^-o / limit; d(L^-o)/dx = -o L^-o (dL/dx) / L.
+        ratio_scale = self._ratio_weight * (inverse ** _ORDER_COLUMN)[:, :, None]
+        ratio = ratio_scale * values
+        shrink = _ORDER_COLUMN[:, :, None] * (inverse[:, None] * span_of_x)  # (3, m, n)
+        dratio = ratio_scale[..., None] * dvalue
+        dratio -= ratio[..., None] * shrink[:, :, None, :]
+        self._ratio, self._dratio, self._coef = ratio, dratio, coef
         self._time, self._dtime = float(h.sum()), h
         self._jerk, self._djerk = 0.0, 0.0
         if self.k_J > 0.0:
-            jerk = bspline.jerk_squared_integrals(coef, spans).sum(axis=0)
-            djerk = bspline.jerk_integral_gradient(coef, dcoef, spans)
-            self._jerk = float(self._jerk_weight @ jerk)
-            self._djerk = (self._jerk_weight @ djerk) @ span_of_x
+            self._jerk, self._djerk = bspline.jerk_cost_and_gradient(
+                coef, dcoef, spans, span_of_x, self._jerk_weight)
         self._key = key
         self._combine()
 
@@ -112,6 +112,14 @@ class TimingProblem:
         self._df = self.cost_scale * (self.k_T * self._dtime + self.k_J * self._djerk)
         self._g = 1.0 - self._ratio.ravel()
         self._dg = -self._dratio.reshape(self._g.size, -1)
+
+    def solution(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """(span coefficients (6, n_span, n_joints), exact peak |derivative| / limit (3,
+        n_joints)) of the last evaluation if it was at x, else None. (The coefficients are in
+        span coordinates, so the start's uniform rescale leaves them as they are.)"""
+        if x.tobytes() != self._key:
+            return None
+        return self._coef, self._ratio.max(axis=(0, 2))
 
     def cost(self, x: np.ndarray) -> float:
         """Scaled cost at x (n_via - 1,); the next three give its gradient, g and dg/dx."""

@@ -23,7 +23,8 @@ maximum and minimum of each derivative on each knot span (span ends and real roo
 derivative), one pair of constraints per span, joint and derivative order. The start h_start is a
 simple per-segment estimate, uniformly time-scaled so that the largest limit ratio is exactly 1
 (and, for k_J > 0, stretched by the best uniform factor for the cost), so it is feasible.
-After solving, the exact peaks of the output B-spline are checked and, if a limit is exceeded,
+The output B-spline is built from the solver's last per-span solve (planner.bspline), and its
+exact peaks are then computed from the B-spline itself: if a limit is exceeded,
 time is scaled uniformly by the smallest factor that restores it (scaling time by s divides
 velocity by s, acceleration by s^2, jerk by s^3). With k_J = 0 time is also scaled down until a
 limit is reached exactly, since a trajectory below every limit is not time-optimal. If the solver
@@ -32,6 +33,8 @@ fails or ends worse than its start, the start is returned (solver_status says so
 
 from __future__ import annotations
 
+import contextlib
+import math
 import time
 from dataclasses import dataclass, fields
 
@@ -42,12 +45,24 @@ from scipy.optimize import minimize
 from threadpoolctl import ThreadpoolController
 
 from planner import bspline
-from planner.bspline import ORDERS, rest_to_rest_system
+from planner.bspline import rest_to_rest_system
+from planner.span_extremes import FALLING, ORDERS, peak_ratios
 from planner.timing import TimingProblem, uniform_scale
 
 _SLSQP_OPTIONS = {"maxiter": 200, "ftol": 1e-10}
 _ORDER_COLUMN = np.array(ORDERS, dtype=float)[:, None]
+# max over s in [0, 1] of |P_o(s)| for coefficients of size |a_k| is at most sum_k k!/(k-o)! |a_k|.
+_DERIVATIVE_BOUND = FALLING[:, list(ORDERS)].T
 _BLAS = ThreadpoolController()
+_BLAS_LIBRARIES = _BLAS.select(user_api="blas").lib_controllers
+
+
+def _one_blas_thread():
+    """Small dense solves in a loop: one BLAS thread (a multithreaded one made a 24 x 24
+    solve 40x slower). Setting the limit costs about 20 us a call, so only when needed."""
+    if all(library.num_threads == 1 for library in _BLAS_LIBRARIES):
+        return contextlib.nullcontext()
+    return _BLAS.limit(limits=1, user_api="blas")
 
 
 @dataclass(frozen=True, eq=False)
@@ -130,7 +145,7 @@ def plan_trajectory(via_points: ArrayLike, v_max: ArrayLike, a_max: ArrayLike, j
     started = time.perf_counter()
     q, limits, k_T, k_J = _validated(via_points, v_max, a_max, j_max, k_T, k_J)
     system = rest_to_rest_system(q.shape[0])
-    with _BLAS.limit(limits=1, user_api="blas"):  # small dense solves in a loop: one thread
+    with _one_blas_thread():
         problem = TimingProblem(system, q, limits, k_T, k_J)
         try:
             result = minimize(problem.cost, np.zeros_like(problem.h_start),
@@ -145,8 +160,9 @@ def plan_trajectory(via_points: ArrayLike, v_max: ArrayLike, a_max: ArrayLike, j
             x, status, message, iterations, evaluations = None, -1, repr(error), 0, 0
         finished = None
         if x is not None and np.all(np.isfinite(x)):
-            h = problem.h_start * np.exp(np.maximum(x, problem.x_lower))
-            finished = _finish(system, q, limits, k_T, k_J, h)
+            x = np.maximum(x, problem.x_lower)
+            h = problem.h_start * np.exp(x)
+            finished = _finish(system, q, limits, k_T, k_J, h, problem.solution(x))
         if finished is None or finished[-1] > problem.start_cost * (1.0 + 1e-9):
             # The solver failed or ended worse than its feasible start: keep the start.
             finished = _finish(system, q, limits, k_T, k_J, problem.h_start)
@@ -171,49 +187,65 @@ def _validated(via_points, v_max, a_max, j_max, k_T, k_J):
         raise ValueError(f"via_points must have shape (n_via, n_joints), got {q.shape}")
     if q.shape[0] < 2 or q.shape[1] < 1:
         raise ValueError(f"need at least 2 via-points and 1 joint, got shape {q.shape}")
-    if not np.all(np.isfinite(q)):
+    if not np.isfinite(q).all():
         raise ValueError("via_points contain NaN or infinity")
-    if np.all(q == q[0]):
+    if (q == q[0]).all():
         raise ValueError("all via_points are equal: there is no motion to time")
     n_joints = q.shape[1]
-    limits = []
-    for name, value in (("v_max", v_max), ("a_max", a_max), ("j_max", j_max)):
+    limits = np.empty((3, n_joints))
+    names = ("v_max", "a_max", "j_max")
+    for row, name, value in zip(limits, names, (v_max, a_max, j_max), strict=True):
         try:
-            limit = np.broadcast_to(np.asarray(value, dtype=float), (n_joints,)).copy()
+            row[:] = np.asarray(value, dtype=float)
         except (TypeError, ValueError):
             raise ValueError(f"{name} must be a scalar or have shape ({n_joints},), "
                              f"got {np.shape(value)}") from None
-        if not np.all(np.isfinite(limit)) or np.any(limit <= 0.0):
-            raise ValueError(f"{name} must be finite and > 0, got {limit.tolist()}")
-        limits.append(limit)
+    valid = np.isfinite(limits) & (limits > 0.0)
+    if not valid.all():
+        row = int(np.flatnonzero(~valid.all(axis=1))[0])
+        raise ValueError(f"{names[row]} must be finite and > 0, got {limits[row].tolist()}")
     weights = []
     for name, value in (("k_T", k_T), ("k_J", k_J)):
         try:
             weight = float(value)
         except (TypeError, ValueError):
             raise ValueError(f"{name} must be a number, got {value!r}") from None
-        if not np.isfinite(weight) or weight < 0.0:
+        if not math.isfinite(weight) or weight < 0.0:
             raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
         weights.append(weight)
     if weights[0] == 0.0:
         raise ValueError("k_T must be > 0: without a time weight the jerk term alone keeps "
                          "falling as the durations grow, so there is no optimum")
-    return q, np.stack(limits), weights[0], weights[1]
+    return q, limits, weights[0], weights[1]
 
 
-def _finish(system, q, limits, k_T, k_J, h):
-    """Output spline for durations h (s) after the exact limit check and any uniform rescale."""
-    spans = system.span_lengths(h)
+def _finish(system, q, limits, k_T, k_J, h, solved=None):
+    """Output spline for durations h (s) after the exact limit check and any uniform rescale;
+    solved: (span coefficients, their peak ratios) for h if the solver has them."""
     via_times = np.concatenate([[0.0], np.cumsum(h)])
-    knots = bspline.knot_vector(spans, via_times, system.via_knot)
-    spline = bspline.interpolating_spline(knots, via_times, q)
-    coef, spans = bspline.spline_span_coefficients(spline)
-    ratios = bspline.peak_ratios(coef, spans, limits)
-    jerk_integrals = bspline.jerk_squared_integrals(coef, spans).sum(axis=0)
+    knots = bspline.knot_vector(system.span_lengths(h), via_times, system.via_knot)
+    breaks = knots[bspline.DEGREE:-bspline.DEGREE]
+    coef = system.solve(breaks[1:] - breaks[:-1], q) if solved is None else solved[0]
+    spline = BSpline.construct_fast(knots, system.bspline_coefficients(coef, knots, q[0], q[-1]),
+                                    bspline.DEGREE, extrapolate=False)
+    # The check reads the output spline itself, not the solve it came from: its own Taylor
+    # coefficients per span, and their exact extremes unless those of the solve, raised by a
+    # bound on the difference, are as good to 1e-12.
+    taylor, spans = bspline.spline_span_coefficients(spline, breaks)
+    ratios = None
+    if solved is not None:
+        difference = np.abs(taylor - coef).reshape(bspline.N_COEF, -1)
+        bound = (_DERIVATIVE_BOUND @ difference).reshape(3, *coef.shape[1:])  # |P_o| change
+        bound = (bound * (spans ** -_ORDER_COLUMN)[:, :, None]).max(axis=1) / limits
+        if bound.max() <= 1e-12:
+            ratios = solved[1] + bound
+    if ratios is None:
+        ratios = peak_ratios(taylor, spans, limits)
+    jerk_integrals = bspline.jerk_squared_integrals(taylor, spans).sum(axis=0)
     repair = uniform_scale(ratios)
     if repair > 1.0 or k_J == 0.0:
         # Same coefficients on knots scaled by s: derivative o is divided by s^o exactly.
-        spline = BSpline(spline.t * repair, spline.c, spline.k, extrapolate=False)
+        spline = BSpline.construct_fast(spline.t * repair, spline.c, spline.k, extrapolate=False)
         ratios = ratios / repair**_ORDER_COLUMN
         jerk_integrals = jerk_integrals / repair**5
     else:

@@ -2,7 +2,9 @@
 
 Peaks are recomputed with scipy's PPoly (roots of the next derivative on every piece) and a dense
 sample, time-optimality against a derivative-free search over the segment-duration shape, the jerk
-term against numerical quadrature.
+term against numerical quadrature. The building blocks: closed-form roots against numpy's
+companion-matrix roots, span extremes against scipy's PPoly root finder, analytic derivatives
+against central differences, the B-spline coefficients against scipy's collocation solve.
 """
 
 import json
@@ -13,7 +15,11 @@ from scipy.integrate import quad
 from scipy.interpolate import BSpline, PPoly, make_interp_spline
 from scipy.optimize import minimize
 
+from planner import bspline
+from planner.bspline import rest_to_rest_system
 from planner.digging_path import paper_joint_via_points
+from planner.span_extremes import cubic_roots, span_extremes
+from planner.timing import TimingProblem
 from planner.trajectory import JointTrajectory, plan_trajectory
 
 DEG = np.pi / 180.0
@@ -242,3 +248,127 @@ def test_bad_input_is_a_clear_value_error(kwargs, message):
     arguments.update(kwargs)
     with pytest.raises(ValueError, match=message):
         plan_trajectory(**arguments)
+
+
+# --- building blocks of the planner, each against an independent reference -------------------
+
+def random_cubics(rng: np.random.Generator, n: int) -> np.ndarray:
+    """(4, n) rows d_0..d_3: generic cubics, tiny or zero leading coefficients, lower degrees,
+    and cubics built from real roots in and around [0, 1] (near-double and at 0 and 1)."""
+    d = rng.normal(size=(4, n))
+    part = n // 6
+    d[3, :part] *= 10.0 ** rng.uniform(-16, -1, part)  # nearly quadratic
+    d[3, part:2 * part] = 0.0  # quadratic
+    d[2:, 2 * part:2 * part + part // 2] = 0.0  # a line
+    roots = rng.uniform(-0.5, 1.5, (3, n))
+    near = slice(3 * part, 4 * part)
+    roots[1, near] = roots[0, near] + 10.0 ** rng.uniform(-10, -2, part)
+    roots[0, 4 * part:5 * part] = rng.choice([0.0, 1.0], part)
+    built = slice(3 * part, n)
+    k = rng.normal(size=n)[built]
+    r0, r1, r2 = roots[:, built]
+    d[:, built] = k * np.stack([-r0 * r1 * r2, r0 * r1 + r0 * r2 + r1 * r2, -(r0 + r1 + r2),
+                                np.ones_like(r0)])
+    return d
+
+
+def test_cubic_roots_contain_every_real_root_in_the_unit_interval():
+    d = random_cubics(np.random.default_rng(40), 3000)
+    candidates = cubic_roots(d)
+    assert candidates.shape == (3, d.shape[1])
+    assert np.all((candidates >= 0.0) & (candidates <= 1.0))
+    # The contract that matters: the antiderivative's extremes over [0, 1] are found. numpy's
+    # companion-matrix roots are the reference; a near-double root it reports as complex is
+    # kept as its real part there too.
+    quartic = np.vstack([np.zeros(d.shape[1]), d / np.arange(1.0, 5.0)[:, None]])
+    for i in range(d.shape[1]):
+        degree = np.flatnonzero(d[:, i])[-1]
+        roots = np.roots(d[degree::-1, i])
+        roots = roots[np.abs(roots.imag) <= 1e-6 * (1.0 + np.abs(roots))].real
+        reference = np.concatenate([[0.0, 1.0], roots[(roots >= 0.0) & (roots <= 1.0)]])
+        ours = np.concatenate([[0.0, 1.0], candidates[:, i]])
+        values = np.polynomial.polynomial.polyval(reference, quartic[:, i])
+        found = np.polynomial.polynomial.polyval(ours, quartic[:, i])
+        scale = np.abs(values).max() + np.abs(quartic[:, i]).max()
+        assert found.max() >= values.max() - 1e-13 * scale
+        assert found.min() <= values.min() + 1e-13 * scale
+        # A simple, well separated root in the interval is found to full precision.
+        simple = roots[(roots > 1e-3) & (roots < 1.0 - 1e-3)]
+        if simple.size and np.min(np.abs(np.subtract.outer(roots, roots))
+                                  + np.eye(roots.size)) > 1e-2:
+            assert np.min(np.abs(candidates[:, i][:, None] - simple), axis=0).max() < 1e-9
+
+
+def test_span_extremes_match_scipy_root_finder():
+    rng = np.random.default_rng(41)
+    coef = rng.normal(size=(6, 40, 3))
+    coef[5, :10] = 0.0  # lower degree spans
+    coef[4:, 10:15] = 0.0
+    coef[1:, 15:18] = 0.0  # constant: every derivative zero
+    coef[:, 18:24] = rng.normal(size=(6, 6, 3)) * 10.0 ** rng.uniform(-8, 3, (6, 1, 1))
+    values, points = span_extremes(coef)
+    assert values.shape == points.shape == (2, 3, 40, 3)
+    for order in (1, 2, 3):
+        for span in range(40):
+            for joint in range(3):
+                pp = PPoly(coef[::-1, span, joint][:, None], [0.0, 1.0])
+                derivative = pp.derivative(order)
+                roots = pp.derivative(order + 1).roots(extrapolate=False)
+                at = np.concatenate([[0.0, 1.0], roots[np.isfinite(roots)]])
+                reference = derivative(at)
+                scale = np.abs(reference).max() + 1e-300
+                got = values[:, order - 1, span, joint]
+                np.testing.assert_allclose(got, [reference.max(), reference.min()],
+                                           rtol=0, atol=1e-13 * scale)
+                # ... and they are the values at the points reported.
+                np.testing.assert_allclose(derivative(points[:, order - 1, span, joint]), got,
+                                           rtol=0, atol=1e-13 * scale)
+
+
+def finite_difference(function, x: np.ndarray, step: float = 1e-6) -> np.ndarray:
+    """Central differences of function (any shape) in each component of x, stacked last."""
+    columns = []
+    for i in range(x.size):
+        dx = np.zeros_like(x)
+        dx[i] = step
+        columns.append((np.asarray(function(x + dx)) - np.asarray(function(x - dx))) / (2 * step))
+    return np.stack(columns, axis=-1)
+
+
+def test_spline_solve_sensitivity_matches_finite_differences():
+    system = rest_to_rest_system(5)
+    q = random_via_points(np.random.default_rng(42), 5)
+    log_spans = np.log(np.random.default_rng(43).uniform(0.3, 2.0, system.n_span))
+    spans = np.exp(log_spans)
+    coef, dcoef = system.solve_with_sensitivity(spans, q, np.diag(spans))  # d/d log L
+    np.testing.assert_array_equal(coef, system.solve(spans, q))
+    numeric = finite_difference(lambda x: system.solve(np.exp(x), q), log_spans)
+    np.testing.assert_allclose(dcoef, numeric, rtol=1e-6, atol=1e-8 * np.abs(coef).max())
+
+
+def test_bspline_coefficients_match_scipy_collocation():
+    for n_via, seed in ((2, 0), (3, 1), (5, 2), (8, 3)):
+        rng = np.random.default_rng(44 + seed)
+        q = random_via_points(rng, n_via)
+        system = bspline.rest_to_rest_system(n_via)
+        h = rng.uniform(0.2, 3.0, n_via - 1)
+        via_times = np.concatenate([[0.0], np.cumsum(h)])
+        knots = bspline.knot_vector(system.span_lengths(h), via_times, system.via_knot)
+        breaks = knots[5:-5]
+        coef = system.solve(np.diff(breaks), q)
+        ours = system.bspline_coefficients(coef, knots, q[0], q[-1])
+        rest = [(1, np.zeros(3)), (2, np.zeros(3)), (3, np.zeros(3))]
+        scipy_spline = make_interp_spline(via_times, q, k=5, t=knots, bc_type=(rest, rest))
+        np.testing.assert_allclose(ours, scipy_spline.c, rtol=0, atol=1e-11)
+
+
+def test_timing_gradients_match_finite_differences():
+    q = random_via_points(np.random.default_rng(45), 5)
+    limits = limits_array(*TABLE1, 3)
+    problem = TimingProblem(rest_to_rest_system(5), q, limits, k_T=0.4, k_J=0.6)
+    x = np.random.default_rng(46).uniform(-0.2, 0.2, 4)
+    np.testing.assert_allclose(problem.cost_gradient(x).copy(),
+                               finite_difference(problem.cost, x), rtol=1e-6, atol=1e-9)
+    jacobian = problem.constraints_jacobian(x).copy()
+    numeric = finite_difference(lambda y: problem.constraints(y).copy(), x)
+    np.testing.assert_allclose(jacobian, numeric, rtol=1e-5, atol=1e-7)
