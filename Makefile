@@ -21,7 +21,7 @@ $(STAMP): pyproject.toml | $(PY)
 
 run: $(STAMP)
 	$(VENV)/bin/excosim fmus build
-	$(VENV)/bin/excosim fmus demo
+	$(VENV)/bin/excosim run scenarios/paper-2020.toml
 
 test: $(STAMP)
 	$(VENV)/bin/excosim fmus build

@@ -1,1 +1,1 @@
-"""excosim orchestrator: the command line now; the co-simulation master and campaign next."""
+"""excosim orchestrator: co-simulation master, simulated excavator, campaign, MCAP log, CLI."""

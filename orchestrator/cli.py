@@ -7,6 +7,7 @@ exit status 1. No traceback reaches a user.
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 from typing import Annotated
 
 import typer
@@ -25,7 +26,7 @@ _err = Console(stderr=True, highlight=False)
 
 
 def _fail(message: str, code: int) -> None:
-    _err.print(f"excosim: {message}", markup=False)
+    _err.print(f"excosim: {message}", markup=False, soft_wrap=True)
     raise typer.Exit(code)
 
 
@@ -58,6 +59,32 @@ def fmus_demo() -> None:
         print(fmus.demo())
     except fmus.BuildError as exc:
         _fail(str(exc), 1)
+
+
+@app.command("run")
+def run(
+    scenario: Annotated[Path, typer.Argument(help="Scenario TOML file.")],
+    output: Annotated[
+        Path | None,
+        typer.Option("-o", "--output", help="MCAP log to write "
+                     "(default: runs/<scenario-name>-<UTC time>.mcap)."),
+    ] = None,
+    periods: Annotated[
+        int | None, typer.Option("--periods", min=1, help="Dig this many periods.")
+    ] = None,
+    overrides: Annotated[
+        list[str] | None,
+        typer.Option("--set", help="Override a scenario value, e.g. --set periods=5 or "
+                     "--set plant.pile.parameters.density=1800 (repeatable)."),
+    ] = None,
+) -> None:
+    """Run a digging campaign: plan, dig and weigh period after period; log it to MCAP."""
+    from orchestrator import run_command
+
+    items = [*(overrides or []), *([f"periods={periods}"] if periods is not None else [])]
+    failure = run_command.run(scenario, output, items)
+    if failure is not None:
+        _fail(*failure)
 
 
 def main() -> None:

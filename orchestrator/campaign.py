@@ -1,0 +1,191 @@
+"""The campaign: digging period after period, adapting the deepest point D to the weighed mass.
+
+For k = 1..periods (paper section 2.3, Fig. 5, Fig. 4's loop):
+
+1. the adaptation (planner.adaptation) decides D: period 1 from `initial_state`, later ones by
+   `next_deepest_point` from the last weighed mass; a terminated decision ends the campaign
+   with termination "workspace_limit", a normal outcome;
+2. the path's joint via-points around D (planner.digging_path) are timed by the time-jerk
+   optimal B-spline (planner.trajectory) under the scenario's limits and weights; a D whose
+   via-points or spline leave the arm's joint ranges is out of reach for the adaptation
+   (orchestrator.period_plan);
+3. the spline, sampled on the plant's communication grid, goes to the plant, which tracks it,
+   weighs the bucket and empties it;
+4. the period's record goes to the run log (MCAP) before period k+1 starts.
+
+    result = run_campaign("scenarios/paper-2020.toml", log_path="runs/paper.mcap")
+    result.termination, result.to_dataframe()[["mass_kg", "error_kg"]]
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from orchestrator.period_record import period_record, records_dataframe
+from orchestrator.scenario import Scenario, load_scenario
+from planner.adaptation import Decision, initial_state, next_deepest_point
+from planner.trajectory import JointTrajectory
+from plant_models.geometry import Unreachable
+from plant_models.plant import JointReference, Plant
+
+
+@dataclass
+class CampaignResult:
+    """What a campaign did.
+
+    records: one plain dict per dug period (keys: orchestrator.period_record.period_record).
+    termination: "periods" (all periods dug), "workspace_limit" (the adaptation ran out of
+        workspace: normal) or "error" (a runtime failure; `message` says what, `error` holds it).
+    """
+
+    records: list[dict[str, Any]]
+    termination: str
+    message: str
+    scenario: Scenario
+    log_path: Path | None
+    error: BaseException | None = field(default=None, repr=False)
+
+    def to_dataframe(self):
+        """pandas DataFrame, one row per period (index k); per-joint values as <name>_<joint>."""
+        return records_dataframe(self.records)
+
+    def periods_within(self, tolerance_kg: float, first_period: int = 2) -> tuple[int, int]:
+        """(periods with |error| <= tolerance_kg, periods counted), from `first_period` on."""
+        errors = [r["error_kg"] for r in self.records if r["k"] >= first_period]
+        return sum(abs(e) <= tolerance_kg for e in errors), len(errors)
+
+
+def build_plant(scenario: Scenario) -> Plant:
+    """The plant a scenario names (plant.kind "sim": the FMU-based simulated excavator)."""
+    from orchestrator.simulated_excavator import SimulatedExcavator
+    from plant_models.hydraulics import default_config
+
+    config = default_config(scenario.machine.preset)
+    specs = scenario.fmu_specs()
+    config = replace(config, **specs, seed=scenario.seed,
+                     communication_step_s=scenario.plant.communication_step_s,
+                     load_cell_noise_kg=scenario.plant.load_cell_noise_kg)
+    return SimulatedExcavator(config)
+
+
+def open_run_log(scenario: Scenario, log_path: str | Path):
+    """The MCAP run log of a campaign (orchestrator.run_log.RunLog)."""
+    from orchestrator.master import fmu_path
+    from orchestrator.run_log import RunLog
+
+    fmus = {role: fmu_path(spec, role) for role, spec in scenario.fmu_specs().items()}
+    return RunLog(Path(log_path), scenario=scenario.to_dict(),
+                  scenario_text=scenario_source_text(scenario), scenario_name=scenario.name,
+                  fmus=fmus, plant_kind=scenario.plant.kind,
+                  target_mass_kg=scenario.target_mass_kg, geometry=scenario.geometry())
+
+
+def scenario_source_text(scenario: Scenario) -> str:
+    """The text the scenario was read from (comments included), or its resolved data as JSON."""
+    import json
+
+    text = scenario.source_text
+    return text if text is not None else json.dumps(scenario.to_dict(), indent=2)
+
+
+def run_campaign(
+    scenario: Scenario | str | Path,
+    *,
+    log_path: str | Path | None = None,
+    progress: Callable[[dict[str, Any]], None] | None = None,
+    plant: Plant | None = None,
+) -> CampaignResult:
+    """Dig `scenario.periods` periods (fewer if the workspace runs out) and report.
+
+    scenario: a Scenario or the path of a TOML scenario file.
+    log_path: where to write the run's MCAP log (None: no log).
+    progress: called with each period's record once the period is done.
+    plant: the plant to dig with instead of the scenario's own (it is closed at the end too).
+    Never raises for a runtime failure: the result's termination is "error" and the log is
+    closed with it. KeyboardInterrupt closes plant and log, then propagates.
+    """
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    records: list[dict[str, Any]] = []
+    termination, message, error = "periods", "", None
+    log = None
+    try:
+        if log_path is not None:
+            log = open_run_log(scenario, log_path)
+        if plant is None:
+            plant = build_plant(scenario)
+        termination, message = _dig(scenario, plant, log, records, progress)
+    except Exception as failure:
+        termination, error = "error", failure
+        period = len(records) + 1
+        message = f"period {period}: {type(failure).__name__}: {failure}".replace("\n", " ")
+    except BaseException:
+        _close_all(plant, log, "error", "interrupted")
+        raise
+    termination, message, error = _close_all(plant, log, termination, message, error)
+    return CampaignResult(records, termination, message, scenario,
+                          Path(log_path) if log_path is not None else None, error)
+
+
+def _dig(scenario: Scenario, plant: Plant, log, records: list,
+         progress: Callable[[dict[str, Any]], None] | None) -> tuple[str, str]:
+    planner = scenario.period_planner()
+    rule, defaults = scenario.fuzzy_rule(), scenario.adaptation_defaults()
+    step_s = float(getattr(plant, "communication_step_s", scenario.plant.communication_step_s))
+    decision: Decision = initial_state(defaults, planner.reachable)
+    t0_s = 0.0
+    for k in range(1, scenario.periods + 1):
+        if decision.terminated:
+            return "workspace_limit", f"workspace limit after {k - 1} period(s)"
+        state = decision.next_state
+        trajectory = planner.plan(state.y_D, state.z_D)
+        if isinstance(trajectory, Unreachable):  # the adaptation hands out reachable points only
+            raise RuntimeError(f"D = ({state.y_D}, {state.z_D}) m: {trajectory.reason}")
+        measurement = plant.run_period(sample_reference(trajectory, step_s))
+        record = period_record(state, decision, trajectory, measurement,
+                               scenario.target_mass_kg, t0_s)
+        if log is not None:
+            log.log_period(record, measurement, t0_s)
+        records.append(record)
+        if progress is not None:
+            progress(record)
+        t0_s += float(measurement.t_s[-1])
+        if k < scenario.periods:
+            decision = next_deepest_point(state, measurement.weighed_mass_kg,
+                                          scenario.target_mass_kg, rule, defaults,
+                                          planner.reachable)
+    return "periods", f"{scenario.periods} period(s) dug"
+
+
+def sample_reference(trajectory: JointTrajectory, step_s: float) -> JointReference:
+    """The trajectory on the grid t = 0, h, 2h, ... up to the first sample at or after its end
+    (the arm is at rest at the last via-point from the end on). step_s: h in s."""
+    if not (math.isfinite(step_s) and step_s > 0.0):
+        raise ValueError(f"communication step must be a finite time > 0 s, got {step_s!r}")
+    n = math.ceil(trajectory.duration / step_s - 1e-9) + 1
+    t_s = np.arange(n) * step_s
+    return JointReference(t_s=t_s, position_rad=trajectory(t_s),
+                          velocity_rad_s=trajectory(t_s, 1),
+                          acceleration_rad_s2=trajectory(t_s, 2))
+
+
+def _close_all(plant: Plant | None, log, termination: str, message: str,
+               error: BaseException | None = None) -> tuple[str, str, BaseException | None]:
+    """Close the plant, then the log; a failure to close the plant turns into an "error"
+    termination (the log records it). Returns the final (termination, message, error)."""
+    try:
+        if plant is not None:
+            plant.close()
+    except Exception as failure:
+        if termination != "error":
+            termination, error = "error", failure
+            message = f"closing the plant: {type(failure).__name__}: {failure}"
+    if log is not None:
+        log.close(termination, message)
+    return termination, message, error

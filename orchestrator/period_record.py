@@ -1,0 +1,86 @@
+"""The record of one digging period: plain, JSON-able data for the log and for analysis.
+
+Keys (angles in the record's own units, per-joint lists in the order boom, stick, bucket):
+
+    k                          period index, from 1
+    t0_s                       campaign time at the period's start (s)
+    deepest_point_m            [y_D, z_D] the period dug through (m)
+    dz_m, eps_m, flag, reset   eq. 5's step dz(k) (m); the correction eps (m) that led to it
+                               (None in period 1); Fig. 5's flag; True when D came from the
+                               reset-and-shift
+    mass_kg, error_kg          weighed mass m_k (kg); error m* - m_k (kg)
+    duration_s                 duration of the period's trajectory (s)
+    max_abs_velocity_deg_s, max_abs_acceleration_deg_s2, max_abs_jerk_deg_s3
+                               exact peaks of the planned spline per joint
+    tracking_rms_deg           RMS of measured minus reference angle per joint (deg)
+    planner_ms                 wall time of the trajectory optimisation (ms)
+    via_points_rad             (5, 3) joint via-points (rad)
+    segment_durations_s        (4,) durations between via-points (s)
+    spline                     {"degree", "knots_s", "coefficients_rad"}: the planned reference
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from planner.adaptation import AdaptationState, Decision
+from planner.trajectory import JointTrajectory
+from plant_models.plant import JOINTS, PeriodMeasurement
+
+PER_JOINT = ("max_abs_velocity_deg_s", "max_abs_acceleration_deg_s2", "max_abs_jerk_deg_s3",
+             "tracking_rms_deg")
+
+
+def period_record(state: AdaptationState, decision: Decision, trajectory: JointTrajectory,
+                  measurement: PeriodMeasurement, target_mass_kg: float,
+                  t0_s: float) -> dict[str, Any]:
+    """The record of period `state.k` (keys: module docstring)."""
+    mass = float(measurement.weighed_mass_kg)
+    return {
+        "k": state.k,
+        "t0_s": float(t0_s),
+        "deepest_point_m": [state.y_D, state.z_D],
+        "dz_m": state.dz,
+        "eps_m": decision.eps_m,
+        "flag": state.flag,
+        "reset": decision.reset,
+        "mass_kg": mass,
+        "error_kg": float(target_mass_kg) - mass,
+        "duration_s": trajectory.duration,
+        "max_abs_velocity_deg_s": _degrees(trajectory.peak_velocity),
+        "max_abs_acceleration_deg_s2": _degrees(trajectory.peak_acceleration),
+        "max_abs_jerk_deg_s3": _degrees(trajectory.peak_jerk),
+        "tracking_rms_deg": _degrees(measurement.tracking_rms_rad),
+        "planner_ms": trajectory.solve_time_ms,
+        "via_points_rad": np.asarray(trajectory.via_points).tolist(),
+        "segment_durations_s": np.asarray(trajectory.segment_durations).tolist(),
+        "spline": {"degree": int(trajectory.spline.k),
+                   "knots_s": np.asarray(trajectory.spline.t).tolist(),
+                   "coefficients_rad": np.asarray(trajectory.spline.c).tolist()},
+    }
+
+
+def _degrees(values_rad) -> list[float]:
+    return np.degrees(np.asarray(values_rad, dtype=float)).tolist()
+
+
+def records_dataframe(records: list[dict[str, Any]]):
+    """pandas DataFrame of records, index k: scalars as they are, D as y_D_m and z_D_m, per-joint
+    lists as <name>_<joint>; via-points, segment durations and the spline are left out."""
+    import pandas as pd
+
+    rows = []
+    for record in records:
+        row = {key: record[key] for key in ("k", "t0_s", "mass_kg", "error_kg", "reset", "flag",
+                                            "dz_m", "eps_m", "duration_s", "planner_ms")}
+        row["y_D_m"], row["z_D_m"] = record["deepest_point_m"]
+        for key in PER_JOINT:
+            for joint, value in zip(JOINTS, record[key], strict=True):
+                row[f"{key}_{joint}"] = value
+        rows.append(row)
+    columns = ["k", "t0_s", "y_D_m", "z_D_m", "dz_m", "eps_m", "flag", "reset", "mass_kg",
+               "error_kg", "duration_s", "planner_ms",
+               *(f"{key}_{joint}" for key in PER_JOINT for joint in JOINTS)]
+    return pd.DataFrame(rows, columns=columns).set_index("k")

@@ -1,0 +1,285 @@
+"""TOML scenarios: what one campaign digs with, validated into typed objects.
+
+A scenario file has top-level keys `name`, `description`, `seed`, `periods`, `target_mass_kg`
+and the tables [machine], [path], [limits], [trajectory], [adaptation], [plant] with
+[plant.boom], [plant.stick], [plant.bucket], [plant.pile] (see scenarios/paper-2020.toml, which
+sets and explains every key). Units are in the key names: `_m`, `_deg`, `_deg_s`, `_kg`, `_s`.
+Anything left out takes the machine preset's default (`preset_defaults`); `name` defaults to the
+file's stem. An FMU table that names another FMU than the default starts without the default's
+parameters and ports (they belong to the default's variables).
+
+    scenario = load_scenario("scenarios/paper-2020.toml", ["periods=5"])
+    scenario.to_dict()                    # the resolved scenario as plain data (TOML-shaped)
+    scenario_from_dict(scenario.to_dict()) == scenario
+
+Every mistake (unknown key, wrong type or count, bad value, missing file, unknown FMU variable)
+raises ScenarioError, a ValueError whose message is one line naming the field, e.g.
+`paper-2020.toml: limits.jerk_deg_s3: expected 3 numbers, got 2`.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pydantic import Field, PrivateAttr, StrictInt, StrictStr, ValidationError
+
+from orchestrator.overrides import apply_overrides
+from orchestrator.period_plan import PeriodPlanner
+from orchestrator.scenario_sections import (
+    AdaptationSection,
+    LimitsSection,
+    MachineSection,
+    PathSection,
+    PlantSection,
+    Section,
+    TrajectorySection,
+)
+from orchestrator.scenario_types import Number, first_error
+from planner.adaptation import AdaptationDefaults, initial_state
+from planner.digging_path import PathShape
+from planner.fuzzy import PAPER_CENTRE_FRACTIONS, PAPER_OUTPUTS_M, FuzzyRule
+from plant_models import presets
+from plant_models.geometry import ExcavatorGeometry, Unreachable
+from plant_models.model_spec import FmuSpec
+
+PLANT_ROLES = ("boom", "stick", "bucket", "pile")
+
+
+class ScenarioError(ValueError):
+    """A mistake in a scenario; str() is one line: `<source>: <field>: <reason>`."""
+
+    def __init__(self, source: str, field: str, reason: str) -> None:
+        self.source, self.field, self.reason = source, field, reason
+        super().__init__(f"{source}: {field}: {reason}" if field else f"{source}: {reason}")
+
+
+class Scenario(Section):
+    """A resolved scenario: every value set, in file units. Methods give the SI objects."""
+
+    name: StrictStr = Field(min_length=1)
+    description: StrictStr
+    seed: StrictInt = Field(ge=0)
+    periods: StrictInt = Field(ge=1)
+    target_mass_kg: Number = Field(gt=0.0)
+    machine: MachineSection
+    path: PathSection
+    limits: LimitsSection
+    trajectory: TrajectorySection
+    adaptation: AdaptationSection
+    plant: PlantSection
+    _source_text: str | None = PrivateAttr(default=None)  # the file's text, comments and all
+
+    def __eq__(self, other: object) -> bool:
+        """Equal settings (the source text does not count)."""
+        return isinstance(other, Scenario) and self.to_dict() == other.to_dict()
+
+    __hash__ = None  # type: ignore[assignment]  # parameters and ports are dicts
+
+    @property
+    def source_text(self) -> str | None:
+        """The TOML text the scenario was read from (before --set overrides), if any."""
+        return self._source_text
+
+    def geometry(self) -> ExcavatorGeometry:
+        return presets.get(self.machine.preset)
+
+    def path_shape(self) -> PathShape:
+        return self.path.shape()
+
+    def limits_rad(self) -> np.ndarray:
+        """(3, 3): rows velocity (rad/s), acceleration (rad/s^2), jerk (rad/s^3); columns boom,
+        stick, bucket."""
+        limits = self.limits
+        return np.radians([limits.velocity_deg_s, limits.acceleration_deg_s2, limits.jerk_deg_s3])
+
+    def period_planner(self) -> PeriodPlanner:
+        """Plans (and checks the reach of) the period through a D for this machine, path,
+        limits and weights (orchestrator.period_plan)."""
+        return PeriodPlanner(self.geometry(), self.path_shape(), self.limits_rad(),
+                             self.trajectory.k_T, self.trajectory.k_J)
+
+    def fuzzy_rule(self) -> FuzzyRule:
+        adaptation = self.adaptation
+        if adaptation.centres_kg is not None:
+            centres = adaptation.centres_kg
+        else:
+            centres = FuzzyRule.paper(self.target_mass_kg, adaptation.centre_fractions).centres_kg
+        return FuzzyRule(centres_kg=centres, outputs_m=adaptation.outputs_m)
+
+    def adaptation_defaults(self) -> AdaptationDefaults:
+        a = self.adaptation
+        return AdaptationDefaults(y_D0=a.y_D0_m, z_D0=a.z_D0_m, dz_0=a.dz_0_m, dy_0=a.dy_0_m)
+
+    def fmu_specs(self) -> dict[str, FmuSpec]:
+        """role (boom, stick, bucket, pile) -> FmuSpec."""
+        return {role: getattr(self.plant, role).spec() for role in PLANT_ROLES}
+
+    def to_dict(self) -> dict[str, Any]:
+        """The resolved scenario as plain TOML-shaped data (lists, floats, strings, tables)."""
+        return self.model_dump(mode="json", exclude_none=True)
+
+
+# Defaults of every preset. Paper section 3.2: m* = 30 kg, 20 periods (Figure 9), Table 1 limits,
+# case 2 weights k_T = 0.1, k_J = 0.9. D0 and the steps: planner.adaptation.AdaptationDefaults.
+_TARGET_MASS_KG = {"paper": 30.0, "lab": 3.5}  # lab: see scenarios/lab.toml for the 3.5 kg
+
+
+def preset_defaults(preset: str) -> dict[str, Any]:
+    """The scenario values a preset implies, TOML-shaped (everything but `name`)."""
+    if preset not in presets.NAMES:
+        raise ValueError(f"unknown preset {preset!r}; known: {', '.join(presets.NAMES)}")
+    shape = PathShape.preset(preset)
+    scale = presets.LAB_SCALE if preset == "lab" else 1.0
+    paper = AdaptationDefaults()
+    return {
+        "description": "",
+        "seed": 0,
+        "periods": 20,
+        "target_mass_kg": _TARGET_MASS_KG[preset],
+        "machine": {"preset": preset},
+        "path": {
+            "start_tip_m": list(shape.start_tip_m),
+            "start_bucket_angle_deg": _degrees(shape.start_bucket_angle_rad),
+            "entry_offset_m": shape.entry_offset_m,
+            "entry_height_m": shape.entry_height_m,
+            "entry_bucket_angle_deg": _degrees(shape.entry_bucket_angle_rad),
+            "closed_bucket_joint_deg": _degrees(shape.closed_bucket_joint_rad),
+            "lift_tip_m": list(shape.lift_tip_m),
+        },
+        "limits": {"velocity_deg_s": [100.0] * 3, "acceleration_deg_s2": [60.0] * 3,
+                   "jerk_deg_s3": [60.0] * 3},
+        "trajectory": {"k_T": 0.1, "k_J": 0.9},
+        "adaptation": {
+            "y_D0_m": paper.y_D0 * scale, "z_D0_m": paper.z_D0 * scale,
+            "dz_0_m": paper.dz_0 * scale, "dy_0_m": paper.dy_0 * scale,
+            "outputs_m": [v * scale for v in PAPER_OUTPUTS_M],
+        },
+        "plant": _plant_defaults(preset),
+    }
+
+
+def _degrees(angle_rad: float) -> float:
+    return round(math.degrees(angle_rad), 9)  # keeps -169.33 from printing as -169.33000000000001
+
+
+def _plant_defaults(preset: str) -> dict[str, Any]:
+    from plant_models.hydraulics import default_config
+
+    config = default_config(preset)
+    plant: dict[str, Any] = {
+        "kind": "sim",
+        "communication_step_s": config.communication_step_s,
+        "load_cell_noise_kg": config.load_cell_noise_kg,
+    }
+    for role in PLANT_ROLES:
+        spec: FmuSpec = getattr(config, role)
+        plant[role] = {"fmu": spec.fmu, "parameters": dict(spec.parameters),
+                       "ports": dict(spec.ports)}
+    return plant
+
+
+def load_scenario(path: str | Path, overrides: Sequence[str] = (),
+                  check_fmus: bool = True) -> Scenario:
+    """Read, override (`--set KEY=VALUE` items) and validate a TOML scenario file."""
+    path = Path(path)
+    source = path.name
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ScenarioError(str(path), "", "no such scenario file") from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise ScenarioError(str(path), "", f"cannot read the file: {error}") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        raise ScenarioError(source, "", f"not valid TOML: {error}") from None
+    data.setdefault("name", path.stem)
+    data = apply_overrides(data, overrides, source)
+    scenario = scenario_from_dict(data, source=source, base_dir=path.resolve().parent,
+                                  check_fmus=check_fmus)
+    scenario._source_text = text
+    return scenario
+
+
+def scenario_from_dict(data: Mapping[str, Any], *, source: str = "scenario",
+                       base_dir: str | Path | None = None, check_fmus: bool = True) -> Scenario:
+    """Validate TOML-shaped data (a parsed file or `Scenario.to_dict()`) into a Scenario.
+
+    Missing values take the preset's defaults; relative FMU paths resolve against base_dir
+    (default: the working folder). With check_fmus, every FMU is found (our models are built)
+    and its parameters and ports are checked against its model description.
+    """
+    if not isinstance(data, Mapping):
+        raise ScenarioError(source, "", f"expected a table of settings, got {type(data).__name__}")
+    machine = data.get("machine", {})
+    preset = machine.get("preset", "paper") if isinstance(machine, Mapping) else "paper"
+    if not isinstance(preset, str) or preset not in presets.NAMES:
+        preset = "paper"  # validation below names the bad preset
+    merged = _merge(preset_defaults(preset), data, ())
+    adaptation = merged.get("adaptation")
+    if isinstance(adaptation, dict) and not {"centre_fractions", "centres_kg"} & set(adaptation):
+        adaptation["centre_fractions"] = list(PAPER_CENTRE_FRACTIONS)
+    scenario = _validate(merged, source)
+    if check_fmus:
+        from orchestrator.scenario_fmus import resolve_fmus
+
+        resolved = resolve_fmus(scenario.to_dict()["plant"], source,
+                                Path(base_dir) if base_dir is not None else Path.cwd())
+        scenario = _validate({**scenario.to_dict(), "plant": resolved}, source)
+    _check_first_period_reachable(scenario, source)
+    return scenario
+
+
+def _merge(base: Mapping[str, Any], override: Mapping[str, Any], where: tuple) -> dict:
+    """`override` deep-merged over `base`; an FMU table naming another FMU drops base's."""
+    merged = dict(base)
+    for key, value in override.items():
+        below = base.get(key)
+        if isinstance(value, Mapping) and isinstance(below, Mapping):
+            if where == ("plant",) and key in PLANT_ROLES and value.get("fmu", below.get("fmu")) \
+                    != below.get("fmu"):
+                below = {}
+            merged[key] = _merge(below, value, (*where, key))
+        else:
+            merged[key] = value
+    return merged
+
+
+def _validate(data: Mapping[str, Any], source: str) -> Scenario:
+    try:
+        return Scenario.model_validate(data)
+    except ValidationError as error:
+        field, reason = first_error(error)
+        if reason.startswith("unknown key"):
+            known = _known_keys(field.split(".")[:-1])
+            if known:
+                reason += f" (known: {', '.join(known)})"
+        raise ScenarioError(source, field, reason) from None
+
+
+def _known_keys(loc: list[str]) -> list[str]:
+    model: Any = Scenario
+    for part in loc:
+        info = getattr(model, "model_fields", {}).get(part)
+        if info is None or not isinstance(info.annotation, type):
+            return []
+        model = info.annotation
+    return list(getattr(model, "model_fields", {}))
+
+
+def _check_first_period_reachable(scenario: Scenario, source: str) -> None:
+    """Fail early when no period can be dug: D0 out of reach even after the shift by dy_0."""
+    planner = scenario.period_planner()
+    defaults = scenario.adaptation_defaults()
+    if initial_state(defaults, planner.reachable).terminated:
+        result = planner.plan(defaults.y_D0, defaults.z_D0)
+        reason = result.reason if isinstance(result, Unreachable) else "out of reach"
+        raise ScenarioError(
+            source, "adaptation",
+            f"the path through D0 = ({defaults.y_D0:g}, {defaults.z_D0:g}) m is out of reach, "
+            f"also shifted by dy_0_m: {reason}")

@@ -1,0 +1,83 @@
+"""Find the scenario's FMUs and check its parameters and port maps against their variables.
+
+Our models (`fmus.MODELS`) are named by name and built on demand; anything else is a path to an
+FMI 2.0 co-simulation .fmu, relative to the scenario's folder, stored resolved (absolute). The
+checks are the co-simulation master's own (`orchestrator.master.check_component`), run before
+any FMU is instantiated, so that a mistake is reported against the scenario field it is in;
+on top, each start value must fit its variable's type (the master would convert it).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import re
+from pathlib import Path
+from typing import Any
+
+from orchestrator.master import check_component, fmu_path
+from plant_models.model_spec import FmuSpec
+
+_ROLE_OF = {"boom": "cylinder", "stick": "cylinder", "bucket": "cylinder", "pile": "pile"}
+_PORT_IN_MESSAGE = re.compile(r"role '([^']+)'")
+
+
+def resolve_fmus(plant: dict[str, Any], source: str, base_dir: Path) -> dict[str, Any]:
+    """A copy of the resolved [plant] table with every `fmu` found; ScenarioError names the
+    first wrong file, parameter or port."""
+    import fmus
+    from orchestrator.scenario import ScenarioError
+
+    plant = copy.deepcopy(plant)
+    for component, role in _ROLE_OF.items():
+        table, where = plant[component], f"plant.{component}"
+        if table["fmu"] not in fmus.MODELS:
+            path = Path(table["fmu"]).expanduser()
+            path = path if path.is_absolute() else base_dir / path
+            if not path.is_file():
+                raise ScenarioError(source, f"{where}.fmu", f"no such file {table['fmu']!r} and "
+                                    f"no model of that name (models: {', '.join(fmus.MODELS)})")
+            table["fmu"] = str(path.resolve())
+        try:
+            spec = FmuSpec(table["fmu"], table["parameters"], table["ports"])
+            description = _description(fmu_path(spec, component))
+            check_component(component, role, FmuSpec(spec.fmu, {}, spec.ports), description)
+        except ValueError as error:
+            port = _PORT_IN_MESSAGE.search(str(error))
+            field = f"{where}.ports.{port.group(1)}" if port else f"{where}.fmu"
+            raise ScenarioError(source, field, _without_component(error, component)) from None
+        variables = {v.name: v for v in description.modelVariables}
+        for name, value in spec.parameters.items():
+            field = f"{where}.parameters.{name}"
+            try:
+                check_component(component, role, FmuSpec(spec.fmu, {name: value}, spec.ports),
+                                description)
+            except ValueError as error:
+                raise ScenarioError(source, field, _without_component(error, component)) from None
+            _check_type(variables[name], description.modelName, value, source, field)
+    return plant
+
+
+def _description(path: Path):
+    from fmpy import read_model_description
+
+    try:
+        return read_model_description(str(path))
+    except Exception as error:  # fmpy raises many kinds for a file that is not an FMU
+        raise ValueError(f"not a readable FMU: {error}") from None
+
+
+def _without_component(error: ValueError, component: str) -> str:
+    return str(error).removeprefix(f"{component}: ")
+
+
+def _check_type(variable, model: str, value: Any, source: str, field: str) -> None:
+    from orchestrator.scenario import ScenarioError
+
+    number = isinstance(value, int | float) and not isinstance(value, bool)
+    fits = {"Real": number and math.isfinite(value),
+            "Integer": isinstance(value, int) and not isinstance(value, bool),
+            "Boolean": isinstance(value, bool)}.get(variable.type, False)
+    if not fits:
+        raise ScenarioError(source, field, f"{model}.{variable.name} is a {variable.type}, "
+                            f"got {value!r}")

@@ -1,0 +1,118 @@
+"""The tables of a scenario file, as pydantic models (extra keys forbidden, values in file
+units: m, deg, deg/s, kg, s). orchestrator.scenario assembles them into a Scenario."""
+
+from __future__ import annotations
+
+import math
+
+from pydantic import BaseModel, ConfigDict, Field, StrictStr, field_validator, model_validator
+
+from orchestrator.scenario_types import Number, ParameterValue, numbers
+from planner.digging_path import PathShape
+from plant_models import presets
+from plant_models.model_spec import FmuSpec
+
+_positive = (lambda v: v > 0.0, "> 0")
+
+
+class Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class MachineSection(Section):
+    preset: StrictStr
+
+    @field_validator("preset")
+    @classmethod
+    def _known(cls, value: str) -> str:
+        if value not in presets.NAMES:
+            raise ValueError(f"unknown preset {value!r}; known: {', '.join(presets.NAMES)}")
+        return value
+
+
+class PathSection(Section):
+    """planner.digging_path.PathShape in file units (m, deg; absolute angles as in
+    plant_models.geometry)."""
+
+    start_tip_m: numbers(2)
+    start_bucket_angle_deg: Number
+    entry_offset_m: Number = Field(ge=0.0)
+    entry_height_m: Number
+    entry_bucket_angle_deg: Number
+    closed_bucket_joint_deg: Number
+    lift_tip_m: numbers(2)
+
+    def shape(self) -> PathShape:
+        return PathShape(
+            start_tip_m=self.start_tip_m,
+            start_bucket_angle_rad=math.radians(self.start_bucket_angle_deg),
+            entry_offset_m=self.entry_offset_m,
+            entry_height_m=self.entry_height_m,
+            entry_bucket_angle_rad=math.radians(self.entry_bucket_angle_deg),
+            closed_bucket_joint_rad=math.radians(self.closed_bucket_joint_deg),
+            lift_tip_m=self.lift_tip_m,
+        )
+
+
+class LimitsSection(Section):
+    """Per-joint bounds [boom, stick, bucket] on |velocity|, |acceleration|, |jerk| (eq. 1)."""
+
+    velocity_deg_s: numbers(3, *_positive)
+    acceleration_deg_s2: numbers(3, *_positive)
+    jerk_deg_s3: numbers(3, *_positive)
+
+
+class TrajectorySection(Section):
+    """Weights of duration and jerk in the planner's cost (planner.trajectory)."""
+
+    k_T: Number = Field(gt=0.0)
+    k_J: Number = Field(ge=0.0)
+
+
+class AdaptationSection(Section):
+    """D0 and the steps of eq. 5 (planner.adaptation); the fuzzy rule (planner.fuzzy): either
+    centre_fractions (ps, pb, vpb as fractions of the target) or all 7 centres_kg."""
+
+    y_D0_m: Number
+    z_D0_m: Number
+    dz_0_m: Number
+    dy_0_m: Number
+    centre_fractions: numbers(3, *_positive, increasing=True) | None = None
+    centres_kg: numbers(7, increasing=True) | None = None
+    outputs_m: numbers(7)
+
+    @model_validator(mode="after")
+    def _one_partition(self) -> AdaptationSection:
+        if (self.centre_fractions is None) == (self.centres_kg is None):
+            raise ValueError("give either centre_fractions or centres_kg (exactly one)")
+        return self
+
+
+class FmuSection(Section):
+    """plant_models.model_spec.FmuSpec: our model's name or a .fmu path, start values, ports."""
+
+    fmu: StrictStr
+    parameters: dict[StrictStr, ParameterValue] = {}
+    ports: dict[StrictStr, StrictStr] = {}
+
+    def spec(self) -> FmuSpec:
+        return FmuSpec(fmu=self.fmu, parameters=dict(self.parameters), ports=dict(self.ports))
+
+
+class PlantSection(Section):
+    kind: StrictStr
+    communication_step_s: Number = Field(gt=0.0)
+    load_cell_noise_kg: Number = Field(ge=0.0)
+    boom: FmuSection
+    stick: FmuSection
+    bucket: FmuSection
+    pile: FmuSection
+
+    @field_validator("kind")
+    @classmethod
+    def _simulated(cls, value: str) -> str:
+        if value == "lab":
+            raise ValueError('the lab plant is not available yet; use "sim"')
+        if value != "sim":
+            raise ValueError(f'unknown plant kind {value!r}; use "sim"')
+        return value
