@@ -8,6 +8,7 @@ runtime failure, whose MCAP log stays readable up to the last finished period.
 from __future__ import annotations
 
 import re
+import sys
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -44,7 +45,9 @@ def run(scenario_path: Path, output: Path | None, overrides: list[str]) -> tuple
     if problem is not None:
         return problem, 2
 
-    out, err = Console(highlight=False), Console(stderr=True, highlight=False)
+    # Piped output has no terminal width; rich would assume 80 columns and cut the table.
+    out = Console(highlight=False, width=None if sys.stdout.isatty() else 120)
+    err = Console(stderr=True, highlight=False)
     columns = (TextColumn("[progress.description]{task.description}"), BarColumn(),
                MofNCompleteColumn(), TimeElapsedColumn())
     with Progress(*columns, console=err, transient=True, disable=not err.is_terminal) as bar:
