@@ -23,5 +23,5 @@ for i, name in enumerate(VIA_POINT_NAMES):
     print(f"{name:8s} {boom:7.2f} {stick:7.2f} {bucket:7.2f}      | "
           f"{tip_y[i]:7.3f}  {tip_z[i]:7.3f}   {np.degrees(bucket_angle[i]):8.2f}")
 
-too_deep = joint_via_points(geometry, (-9.0, -2.5), shape)
-print(f"D = (-9, -2.5) m: reachable = {too_deep.ok}; {too_deep.reason}")
+too_deep = joint_via_points(geometry, (-9.0, -3.0), shape)
+print(f"D = (-9, -3.0) m: reachable = {too_deep.ok}; {too_deep.reason}")

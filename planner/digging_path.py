@@ -23,12 +23,13 @@ Five via-points bound the paper's four stages (frames and angles: `plant_models.
 A pose out of reach or beyond a joint limit makes the path `Unreachable`, naming the via-point.
 
 Paper path shape and the paper's 16.17 s. Entry 0.5 m beyond D at z = 0 with the bucket line at
--62 deg sets where the stick reaches its outer limit below y = -9 m (z_D = -1.72 m, see
-plant_models.presets); the bucket closes to -120 deg, 15 deg short of its curl stop; the full bucket
-is lifted to (-6, 2) m; the start pose is the lifted pose (tip (-6, 2) m, bucket line at
--169.33 deg), so every period ends where it began.
+-62 deg sets where the stick reaches its outer limit below y = -9 m (via-points: z_D = -2.94 m;
+the timed spline already at -2.30 m, see plant_models.presets); the bucket closes to -120 deg,
+15 deg short of its curl stop; the full bucket is lifted to (-6, 2) m; the start pose is the
+lifted pose (tip (-6, 2) m, bucket line at -170.64 deg on the paper arm), so every period ends
+where it began.
 The paper's case 1 (k_T = 1, k_J = 0, Table 1 limits) takes 16.17 s; planner.trajectory plans
-this path in 8.9 s (case 2: 13.4 s; paper 18.38 s), and no choice of start pose, lift pose and
+this path in 8.3 s (case 2: 12.7 s; paper 18.38 s), and no choice of start pose, lift pose and
 closed bucket angle brings it near 16 s: a random search over them found at most 11.0 s, and a
 period that starts and ends fully tucked 12.7 s. With Table 1's limits a single 180 deg
 rest-to-rest move takes 5.9 s; only via-points that reverse every joint across its whole range at
@@ -40,7 +41,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -90,18 +91,27 @@ class PathShape:
     def preset(name: str) -> PathShape:
         """Default path shape for the geometry preset `name` ("paper" or "lab").
 
-        paper: see the module docstring. lab: the paper shape with lengths scaled by LAB_SCALE.
+        paper: see the module docstring. lab: the paper shape with lengths scaled by LAB_SCALE,
+        starting at the lifted pose of the lab's (scaled standard) arm.
         """
         if name == "paper":
             return PAPER_PATH_SHAPE
         if name == "lab":
-            return _scaled(PAPER_PATH_SHAPE, presets.LAB_SCALE)
+            standard = replace(PAPER_PATH_SHAPE,
+                               start_bucket_angle_rad=STANDARD_ARM_START_BUCKET_ANGLE_RAD)
+            return _scaled(standard, presets.LAB_SCALE)
         raise ValueError(f"unknown path shape preset {name!r}; known presets: paper, lab")
 
 
+# The bucket line at the lifted pose (tip (-6, 2) m, bucket joint -120 deg) of the paper arm
+# (3.2 m stick) and of the standard 2.9 m stick arm the lab arm scales: the start pose is the
+# lifted pose, so every period ends where it began.
+PAPER_START_BUCKET_ANGLE_RAD = math.radians(-170.64)
+STANDARD_ARM_START_BUCKET_ANGLE_RAD = math.radians(-169.33)
+
 PAPER_PATH_SHAPE = PathShape(
     start_tip_m=(-6.0, 2.0),
-    start_bucket_angle_rad=math.radians(-169.33),
+    start_bucket_angle_rad=PAPER_START_BUCKET_ANGLE_RAD,
     entry_offset_m=0.5,
     entry_height_m=0.0,
     entry_bucket_angle_rad=math.radians(-62.0),

@@ -8,16 +8,17 @@ stroke `x0` is set by the plant from the start pose.
 Link inertia: the cylinder FMU has one moving mass. It is set to the rod's own mass plus the
 inertia the joint sees with the other joints locked (the diagonal term M_ii of the arm's mass
 matrix, links as point masses at their centres of mass plus a uniform rod's m L^2 / 12 about
-it) reflected onto the rod, M_ii / r_i^2 with r_i = d(stroke)/d(angle), at DESIGN_POSE_RAD.
-This is stable (the inertia stays inside the FMU's integrator) and exact at that pose; the
-pose dependence (a factor 1.1 on the boom, up to 3 on the stick and 5 on the bucket over the
-paper path) and the off-diagonal coupling are left out: the paper's trajectories are slow
-(< 33 deg/s), so inertial forces stay small next to gravity.
+it) reflected onto the rod, M_ii / r_i^2 with r_i = d(stroke)/d(angle), at DESIGN_POSE_RAD
+(lab: LAB_DESIGN_POSE_RAD). This is stable (the inertia stays inside the FMU's integrator) and
+exact at that pose; the pose dependence (a factor 1.1 on the boom, up to 3 on the stick and 5
+on the bucket over the paper path) and the off-diagonal coupling are left out: the paper's
+trajectories are slow (< 33 deg/s), so inertial forces stay small next to gravity.
 
 paper (a 20 t class machine; round figures of the class's specification sheets)
     boom     two 120/85 mm cylinders, modelled as one of the same total areas (bore 169.7 mm,
              rod 120.2 mm); stroke 1.289 m (linkage)
-    stick    one 135/95 mm cylinder, stroke 1.443 m; bucket one 115/80 mm, stroke 1.038 m
+    stick    one 135/95 mm cylinder, stroke 1.472 m (the long stick's); bucket one 115/80 mm,
+             stroke 1.038 m
     dead volumes: the lines from the main valve (1" = 25 mm bore) along the arm plus end
              clearance: boom 2 x 1 L (about 2 m of line each), stick 3 L (6 m), bucket 4.5 L
              (9 m, the line runs along boom and stick)
@@ -26,7 +27,7 @@ paper (a 20 t class machine; round figures of the class's specification sheets)
     valve    rated flow per metering edge at 3.5 MPa: boom 200 L/min (two pumps join for boom
              raising, about 2 x 220 L/min on the class), stick 160 L/min, bucket 100 L/min:
              unloaded speeds 0.41, 0.51, 0.44 m/s, about twice the paper trajectory's peak
-             stroke rates (0.10, 0.25, 0.17 m/s at D = (-9, -0.1) m, case 2)
+             stroke rates (0.10, 0.22, 0.19 m/s at D = (-9, -0.1) m, case 2)
     friction Coulomb 2 kN and viscous 5 kN s/m per cylinder (FMU defaults; doubled on the boom)
     rod, piston and oil: boom 2 x 150 kg, stick 200 kg, bucket 120 kg
 
@@ -63,9 +64,14 @@ from plant_models.model_spec import FmuSpec
 from plant_models.sim_config import SimulatedExcavatorConfig
 
 # The paper scenario's first-period pose at D = (-9, -0.1) m (planner.digging_path,
-# paper_joint_via_points()[2]); the lab path is the paper path scaled, so the same joint angles.
+# paper_joint_via_points()[2]).
 DESIGN_POSE_RAD: tuple[float, float, float] = (
+    math.radians(14.46504987), math.radians(-53.85275241), math.radians(-30.20802183))
+# The lab's: its arm is the standard 2.9 m stick arm scaled and its path the paper path scaled,
+# so the standard arm's pose at D = (-9, -0.1) m.
+LAB_DESIGN_POSE_RAD: tuple[float, float, float] = (
     math.radians(10.4633846), math.radians(-44.33907499), math.radians(-37.17639685))
+_DESIGN_POSES = {"paper": DESIGN_POSE_RAD, "lab": LAB_DESIGN_POSE_RAD}
 
 _LPM = 1.0e-3 / 60.0  # m^3/s per L/min
 
@@ -153,7 +159,7 @@ def cylinder_parameters(preset: str) -> dict[str, dict[str, float]]:
     parameters = tables[preset]()
     for joint, stroke in zip(JOINT_NAMES, strokes, strict=True):
         parameters[joint]["stroke"] = stroke
-        parameters[joint]["mass"] += reflected_mass_kg(geometry, joint, DESIGN_POSE_RAD)
+        parameters[joint]["mass"] += reflected_mass_kg(geometry, joint, _DESIGN_POSES[preset])
     return parameters
 
 
@@ -163,10 +169,11 @@ def cylinder_model(preset: str, joint: str) -> CylinderModel:
 
 
 def design_strokes_m(preset: str) -> tuple[float, float, float]:
-    """Strokes (m) of boom, stick and bucket at DESIGN_POSE_RAD in `preset`."""
+    """Strokes (m) of boom, stick and bucket at the design pose of `preset` (DESIGN_POSE_RAD,
+    LAB_DESIGN_POSE_RAD)."""
     geometry = presets.get(preset)
     return tuple(stroke_from_joint_angle(geometry, joint, angle)
-                 for joint, angle in zip(JOINT_NAMES, DESIGN_POSE_RAD, strict=True))
+                 for joint, angle in zip(JOINT_NAMES, _DESIGN_POSES[preset], strict=True))
 
 
 def default_config(preset: str) -> SimulatedExcavatorConfig:

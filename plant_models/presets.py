@@ -4,20 +4,28 @@
 Use `get(name)`; `NAMES` lists the presets. Conventions and frames: `plant_models.geometry`.
 
 paper
-    A 20 t class machine. Boom 5.7 m and bucket 1.5 m are typical published figures of that class
-    (e.g. 5.7 m "reach" booms of 20-22 t excavators); the stick is 2.9 m, the common standard stick
-    of the class. Boom foot at y = -0.5 m, z = 1.9 m (about 0.5 m ahead of the swing centre and
-    1.9 m above ground, typical of the class). Joint ranges: boom -50..+60 deg, stick -155..-30
-    deg, bucket -135..+45 deg (180 deg of bucket rotation); they give a maximum digging depth of
-    6.86 m and a maximum tip height of 9.74 m, close to the class's published 6.6-6.7 m and
-    9.5-10 m. The paper gives no machine data, so the ranges were also chosen for the paper's
-    scenario: its default deepest point D = (-9, -0.1) m is reachable, and digging straight down
-    at y = -9 m hits the stick's outer limit at z_D = -1.72 m with the paper path shape
-    (`planner.digging_path`), i.e. after about ten periods, as in the paper's section 3.2.
-    Cylinder mounts were chosen by a search for realistic cylinders over these ranges (retracted
-    length / stroke: boom 1.95 / 1.29 m, stick 2.11 / 1.44 m, bucket 1.74 / 1.04 m; 20 t class
-    cylinders have strokes of about 1.3, 1.5 and 1.1 m) with linkage transmission angles of at least
-    25 deg; the end stops are then the joint limits.
+    A 20 t class machine with a long stick. Boom 5.7 m and bucket 1.5 m are typical published
+    figures of that class (e.g. 5.7 m "reach" booms of 20-22 t excavators). The class's standard
+    stick is 2.9 m (STANDARD_STICK_LENGTH_M, the arm the lab preset scales); most makers also offer
+    a short and a long stick, and this machine carries a long one of 3.18 m
+    (PAPER_STICK_LENGTH_M; the long sticks of the class are about 3.0-3.2 m). Boom foot at
+    y = -0.5 m, z = 1.9 m (about 0.5 m ahead of the swing centre and 1.9 m above ground, typical
+    of the class). Joint ranges: boom -50..+60 deg, stick -152.3..-25.1 deg, bucket -135..+45 deg
+    (180 deg of bucket rotation); they give a maximum digging depth of 7.14 m and a maximum tip
+    height of 10.13 m (standard-stick figures of the class: 6.6-6.7 m and 9.5-10 m).
+    The paper gives no machine data, so the stick and its range were chosen for the paper's
+    scenario (section 3.2: the reach limit after about ten periods of digging straight down at
+    y = -9 m, then a shift toward the machine): the planned spline at y = -9 m leaves the stick's
+    outer stop from z_D = -2.30 m (orchestrator.period_plan; the via-points alone from -2.94 m),
+    which the calibrated paper scenario reaches after period 8; the inner stop leaves room for
+    the scenario's shift. With the standard 2.9 m stick the limit is at z_D = -1.36 m (reached in
+    period 6).
+    Cylinder mounts were chosen by a search for realistic cylinders over the standard ranges
+    (retracted length / stroke: boom 1.95 / 1.29 m, stick 2.11 / 1.44 m, bucket 1.74 / 1.04 m; 20 t
+    class cylinders have strokes of about 1.3, 1.5 and 1.1 m) with linkage transmission angles of
+    at least 25 deg; the end stops are then the joint limits. The long stick keeps the standard
+    stick cylinder's mounts; its own cylinder (retracted 2.07 m, stroke 1.47 m, within the class's
+    1.5 m) has the end stops PAPER_STICK_RANGE_DEG.
     Masses are estimates for the class (front attachment about 3.5 t of a 20 t machine: boom with
     its cylinders 1800 kg, stick with the bucket cylinder 900 kg, 1.0 m^3 bucket with linkage
     800 kg); centres of mass near the middle of each link, slightly on the side of its cylinders.
@@ -27,10 +35,10 @@ paper
 lab
     The paper's laboratory excavator (section 3.3: length 1.15 m, height 0.832 m, digging depth
     0.414 m, 10 kg maximum load, 20 bar maximum oil pressure). Its arm dimensions are not published,
-    so the paper arm is scaled by LAB_SCALE = 0.0855, chosen so the maximum tip height is the
-    published 0.832 m (read as the tip's highest point); the boom's lower limit is raised to about
-    -24.3 deg (a shorter boom cylinder stroke) so the maximum digging depth is the published
-    0.414 m.
+    so the standard (2.9 m stick) arm is scaled by LAB_SCALE = 0.0855, chosen so the maximum tip
+    height is the published 0.832 m (read as the tip's highest point); the boom's lower limit is
+    raised to about -24.3 deg (a shorter boom cylinder stroke) so the maximum digging depth is the
+    published 0.414 m.
     Masses scale with LAB_SCALE^3 (about 0.6 g per kg). The 1.15 m length includes the
     undercarriage, which this planar arm model does not describe; the 10 kg load and 20 bar belong
     to the payload and hydraulics models.
@@ -39,6 +47,7 @@ lab
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 from plant_models.geometry import ExcavatorGeometry, LinkMass
 from plant_models.linkage import BucketLinkage, PinJointCylinder
@@ -47,15 +56,22 @@ NAMES = ("paper", "lab")
 # Paper section 3.3: the lab excavator's published envelope.
 LAB_HEIGHT_M = 0.832
 LAB_DIGGING_DEPTH_M = 0.414
-# Lab arm / paper arm lengths: the paper arm's maximum tip height (9.736 m) scaled to LAB_HEIGHT_M.
+# Lab arm / standard arm lengths: the standard arm's maximum tip height (9.736 m) scaled to
+# LAB_HEIGHT_M.
 LAB_SCALE = LAB_HEIGHT_M / 9.736
+# The class's standard stick (the lab arm scales the arm with it) and the paper machine's long
+# stick with the joint range (inner, outer stop) of its cylinder; see the module docstring.
+STANDARD_STICK_LENGTH_M = 2.9
+PAPER_STICK_LENGTH_M = 3.18
+PAPER_STICK_RANGE_DEG = (-152.3, -25.1)
 
 
-def _paper() -> ExcavatorGeometry:
+def _standard_arm(name: str) -> ExcavatorGeometry:
+    """The class's standard 2.9 m stick arm (the lab arm scales it)."""
     return ExcavatorGeometry(
-        name="paper",
+        name=name,
         boom_length_m=5.7,
-        stick_length_m=2.9,
+        stick_length_m=STANDARD_STICK_LENGTH_M,
         bucket_length_m=1.5,
         boom_foot_m=(-0.5, 1.9),
         boom_cylinder=PinJointCylinder(
@@ -90,29 +106,41 @@ def _paper() -> ExcavatorGeometry:
     )
 
 
+def _paper() -> ExcavatorGeometry:
+    standard = _standard_arm("paper")
+    stick = standard.stick_cylinder
+    # The long stick's cylinder: the standard one's mounts, with the end stops (joint angles)
+    # of PAPER_STICK_RANGE_DEG; its lengths follow from the mounts.
+    inner, outer = (stick.length_from_angle(math.radians(a)) for a in PAPER_STICK_RANGE_DEG)
+    retracted, extended = sorted((inner, outer))
+    long_stick = PinJointCylinder(stick.prev_mount_m, stick.next_mount_m, retracted,
+                                  extended - retracted, stick.branch)
+    return replace(standard, stick_length_m=PAPER_STICK_LENGTH_M, stick_cylinder=long_stick)
+
+
 def _scaled(point: tuple[float, float], scale: float) -> tuple[float, float]:
     return (point[0] * scale, point[1] * scale)
 
 
 def _lab() -> ExcavatorGeometry:
-    paper = _paper()
+    standard = _standard_arm("lab")
     s = LAB_SCALE
-    boom = paper.boom_cylinder
+    boom = standard.boom_cylinder
     boom_prev, boom_next = _scaled(boom.prev_mount_m, s), _scaled(boom.next_mount_m, s)
     # A shorter boom stroke, retracted at the boom angle whose deepest pose (stick and bucket
     # hanging straight down) reaches the published digging depth.
-    hanging = (paper.stick_length_m + paper.bucket_length_m) * s
-    foot_z = paper.boom_foot_m[1] * s
-    lowest_boom = math.asin((hanging - LAB_DIGGING_DEPTH_M - foot_z) / (paper.boom_length_m * s))
+    hanging = (standard.stick_length_m + standard.bucket_length_m) * s
+    foot_z = standard.boom_foot_m[1] * s
+    lowest_boom = math.asin((hanging - LAB_DIGGING_DEPTH_M - foot_z) / (standard.boom_length_m * s))
     lowest = PinJointCylinder(boom_prev, boom_next, 1.0, 1.0).length_from_angle(lowest_boom)
     fully_raised = (boom.retracted_length_m + boom.stroke_m) * s
-    stick, bucket = paper.stick_cylinder, paper.bucket_linkage
+    stick, bucket = standard.stick_cylinder, standard.bucket_linkage
     return ExcavatorGeometry(
         name="lab",
-        boom_length_m=paper.boom_length_m * s,
-        stick_length_m=paper.stick_length_m * s,
-        bucket_length_m=paper.bucket_length_m * s,
-        boom_foot_m=_scaled(paper.boom_foot_m, s),
+        boom_length_m=standard.boom_length_m * s,
+        stick_length_m=standard.stick_length_m * s,
+        bucket_length_m=standard.bucket_length_m * s,
+        boom_foot_m=_scaled(standard.boom_foot_m, s),
         boom_cylinder=PinJointCylinder(
             boom_prev, boom_next, lowest, fully_raised - lowest, boom.branch
         ),
@@ -135,10 +163,14 @@ def _lab() -> ExcavatorGeometry:
             cylinder_side=bucket.cylinder_side,
             link_side=bucket.link_side,
         ),
-        boom_mass=LinkMass(paper.boom_mass.mass_kg * s**3, _scaled(paper.boom_mass.com_m, s)),
-        stick_mass=LinkMass(paper.stick_mass.mass_kg * s**3, _scaled(paper.stick_mass.com_m, s)),
+        boom_mass=LinkMass(
+            standard.boom_mass.mass_kg * s**3, _scaled(standard.boom_mass.com_m, s)
+        ),
+        stick_mass=LinkMass(
+            standard.stick_mass.mass_kg * s**3, _scaled(standard.stick_mass.com_m, s)
+        ),
         bucket_mass=LinkMass(
-            paper.bucket_mass.mass_kg * s**3, _scaled(paper.bucket_mass.com_m, s)
+            standard.bucket_mass.mass_kg * s**3, _scaled(standard.bucket_mass.com_m, s)
         ),
     )
 

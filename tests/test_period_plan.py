@@ -35,18 +35,18 @@ def test_joint_ranges_match_a_dense_sample():
 
 def test_a_spline_beyond_the_stick_range_is_out_of_reach():
     planner = _planner()
-    # At z_D = -1.5 m below y = -9 m every via-point is inside the joint ranges ...
-    via = joint_via_points(PAPER, (-9.0, -1.5), SHAPE)
+    # At z_D = -2.5 m below y = -9 m every via-point is inside the joint ranges ...
+    via = joint_via_points(PAPER, (-9.0, -2.5), SHAPE)
     assert not isinstance(via, Unreachable)
     # ... but the timed spline swings the stick past its outer stop between two of them.
     spline = plan_trajectory(via, *TABLE_1, k_T=0.1, k_J=0.9).spline
     stick = spline(np.linspace(spline.t[0], spline.t[-1], 20001))[:, 1]
     assert stick.max() > PAPER.joint_limits_rad[1][1]
-    plan = planner.plan(-9.0, -1.5)
+    plan = planner.plan(-9.0, -2.5)
     assert isinstance(plan, Unreachable)
     assert plan.reason.startswith("the stick spline swings to")
     assert f"{math.degrees(PAPER.joint_limits_rad[1][1]):.2f}] deg" in plan.reason
-    assert not planner.reachable(-9.0, -1.5)
+    assert not planner.reachable(-9.0, -2.5)
 
 
 def test_a_reachable_point_gives_the_planners_trajectory_and_is_remembered():

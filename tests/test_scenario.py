@@ -65,7 +65,7 @@ MISTAKES = [
      "adaptation.centre_fractions: expected 3 strictly increasing numbers, got [0.3, 0.1, 0.6]"),
     ("[adaptation]\ny_D0_m = -20.0", [],
      "adaptation: the path through D0 = (-20, -0.1) m is out of reach, also shifted by dy_0_m: "
-     "entry via-point: bucket pin 19.304 m from the boom foot, beyond the arm's reach 8.600 m"),
+     "entry via-point: bucket pin 19.304 m from the boom foot, beyond the arm's reach 8.880 m"),
     ("[plant.pile]\nfmu = \"Heap\"", [], "plant.pile.fmu: no such file 'Heap' and no model of "
      "that name (models: HydraulicCylinder, Pile)"),
     ("[plant.pile]\nfmu = \"missing/pile.fmu\"", [], "plant.pile.fmu: no such file "
