@@ -30,11 +30,12 @@ lifted pose (tip (-6, 2) m, bucket line at -170.64 deg on the paper arm), so eve
 where it began.
 The paper's case 1 (k_T = 1, k_J = 0, Table 1 limits) takes 16.17 s; planner.trajectory plans
 this path in 8.3 s (case 2: 12.7 s; paper 18.38 s), and no choice of start pose, lift pose and
-closed bucket angle brings it near 16 s: a random search over them found at most 11.0 s, and a
-period that starts and ends fully tucked 12.7 s. With Table 1's limits a single 180 deg
-rest-to-rest move takes 5.9 s; only via-points that reverse every joint across its whole range at
-every via-point (17.5 s) get past 16 s, which is no digging path. The paper's via-points are
-unknown, and the shape is kept physical rather than fitted to the time.
+closed bucket angle brings it near 16 s: a random search over them found at most 11.0 s and a
+period that starts and ends fully tucked 12.7 s (both on the standard 2.9 m stick). With Table
+1's limits a single 180 deg rest-to-rest move takes 5.9 s; only via-points that reverse every
+joint across its whole range at every via-point (17.5 s) get past 16 s, which is no digging
+path. The paper's via-points are unknown, and the shape is kept physical rather than fitted to
+the time.
 """
 
 from __future__ import annotations
@@ -104,7 +105,7 @@ class PathShape:
 
 
 # The bucket line at the lifted pose (tip (-6, 2) m, bucket joint -120 deg) of the paper arm
-# (3.2 m stick) and of the standard 2.9 m stick arm the lab arm scales: the start pose is the
+# (3.18 m stick) and of the standard 2.9 m stick arm the lab arm scales: the start pose is the
 # lifted pose, so every period ends where it began.
 PAPER_START_BUCKET_ANGLE_RAD = math.radians(-170.64)
 STANDARD_ARM_START_BUCKET_ANGLE_RAD = math.radians(-169.33)
