@@ -12,6 +12,7 @@ import io
 import json
 import struct
 import zlib
+from collections.abc import Collection
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,8 +22,9 @@ import zstandard
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.opcode import Opcode
-from mcap.records import Attachment, Channel, Metadata
+from mcap.records import Attachment, Channel, Metadata, Schema
 
+from orchestrator.run_log_decode import DecodeError, decode, numeric_schema
 from orchestrator.run_log_mcap import MAGIC
 from orchestrator.run_log_metadata import FORMAT
 
@@ -36,6 +38,31 @@ class RunLogError(ValueError):
 
 
 @dataclass
+class ChannelSamples:
+    """The messages of one numeric channel, decoded with the schema stored in the file.
+
+    log_time_ns: (n,) campaign time of each message (ns since the start of period 1).
+    period: (n,) the period (1-based) each message belongs to: the one whose /period record
+    follows it in the file (a period's last sample and the next one's first share a time).
+    fields: field name -> (n,) values (NaN where a message lacks the field) or (n, k) for a
+    repeated field. schema: its name (e.g. "excosim.JointState"). metadata: the channel's
+    metadata (e.g. "names" of a /signals channel as a JSON list).
+    """
+
+    topic: str
+    schema: str
+    log_time_ns: np.ndarray
+    period: np.ndarray
+    fields: dict[str, np.ndarray]
+    metadata: dict[str, str]
+
+    def of_period(self, k: int) -> dict[str, np.ndarray]:
+        """The fields of the messages of period k (1-based)."""
+        lo, hi = np.searchsorted(self.period, [k, k + 1])
+        return {name: values[lo:hi] for name, values in self.fields.items()}
+
+
+@dataclass
 class RunFile:
     """What a run log holds.
 
@@ -43,6 +70,8 @@ class RunFile:
     metadata: record name -> key -> value (e.g. metadata["excosim.versions"]["numpy"]).
     attachments: name -> bytes ("scenario.toml", "fmus/<file name>").
     message_counts: topic -> number of messages read.
+    period_end_ns: log time (ns) of each /period message, i.e. of each period's end.
+    channels: topic -> ChannelSamples of the numeric channels asked for (`read_run(topics=)`).
     finished: the run closed its log (an end record is present); termination and
     termination_message come from it (None if not finished).
     truncated: the file ends inside a record, lacks its footer or has a damaged chunk (a
@@ -54,6 +83,8 @@ class RunFile:
     metadata: dict[str, dict[str, str]] = field(default_factory=dict)
     attachments: dict[str, bytes] = field(default_factory=dict)
     message_counts: dict[str, int] = field(default_factory=dict)
+    period_end_ns: list[int] = field(default_factory=list)
+    channels: dict[str, ChannelSamples] = field(default_factory=dict)
     finished: bool = False
     termination: str | None = None
     termination_message: str | None = None
@@ -81,26 +112,64 @@ def _decompress(compression: str, data: bytes, size: int) -> bytes:
 
 
 class _Scan:
-    def __init__(self, run: RunFile) -> None:
+    def __init__(self, run: RunFile, collect: frozenset[str]) -> None:
         self.run = run
         self.topics: dict[int, str] = {}
+        self.channels: dict[int, Channel] = {}
+        self.schemas: dict[int, Schema] = {}
+        self.collect = collect
+        self.collected: dict[int, list[tuple[int, int, bytes]]] = {}
+
+    def schema(self, body: bytes) -> None:
+        schema = Schema.read(ReadDataStream(io.BytesIO(body)))
+        self.schemas[schema.id] = schema
 
     def channel(self, body: bytes) -> None:
         channel = Channel.read(ReadDataStream(io.BytesIO(body)))
         self.topics[channel.id] = channel.topic
+        self.channels[channel.id] = channel
 
     def message(self, body: memoryview) -> None:
-        (channel_id,) = struct.unpack_from("<H", body)
+        channel_id, _, log_time = struct.unpack_from("<HIQ", body)
         topic = self.topics.get(channel_id, f"<channel {channel_id}>")
         self.run.message_counts[topic] = self.run.message_counts.get(topic, 0) + 1
         if topic == "/period":
-            self.period(body[_MESSAGE_DATA:])
+            self.period(body[_MESSAGE_DATA:], log_time)
+        elif topic in self.collect:
+            self.collected.setdefault(channel_id, []).append(
+                (len(self.run.periods) + 1, log_time, bytes(body[_MESSAGE_DATA:])))
 
-    def period(self, data: memoryview) -> None:
+    def period(self, data: memoryview, log_time: int) -> None:
         try:
             self.run.periods.append(json.loads(bytes(data)))
         except ValueError:
             raise RunLogError(f"{self.run.path}: a /period message is not JSON") from None
+        self.run.period_end_ns.append(log_time)
+
+    def decode_collected(self) -> None:
+        """Decode the collected messages into run.channels (one entry per topic)."""
+        by_topic: dict[str, list[tuple[int, int, bytes]]] = {}
+        channel_of: dict[str, Channel] = {}
+        for channel_id, messages in self.collected.items():
+            topic = self.topics[channel_id]
+            by_topic.setdefault(topic, []).extend(messages)
+            channel_of.setdefault(topic, self.channels[channel_id])
+        for topic, messages in by_topic.items():
+            channel = channel_of[topic]
+            schema = self.schemas.get(channel.schema_id)
+            if schema is None or schema.encoding != "protobuf":
+                raise RunLogError(f"{self.run.path}: channel {topic} is not a protobuf channel")
+            messages.sort(key=lambda item: item[:2])
+            try:
+                fields = decode(numeric_schema(schema.name, schema.data),
+                                [data for _, _, data in messages])
+            except DecodeError as error:
+                raise RunLogError(f"{self.run.path}: channel {topic}: {error}") from None
+            n = len(messages)
+            periods = np.fromiter((k for k, _, _ in messages), dtype=np.int64, count=n)
+            times = np.fromiter((t for _, t, _ in messages), dtype=np.int64, count=n)
+            self.run.channels[topic] = ChannelSamples(topic, schema.name, times, periods,
+                                                      fields, dict(channel.metadata))
 
     def _indexed(self, view: memoryview, index: dict[int, np.ndarray]) -> bool:
         """Whether the message index can stand for the chunk: every channel known and the
@@ -126,14 +195,18 @@ class _Scan:
             return False
         view = memoryview(records)
         if index is not None and self._indexed(view, index):
+            wanted = []
             for channel, offsets in index.items():
                 topic = self.topics[channel]
-                self.run.message_counts[topic] = self.run.message_counts.get(topic, 0)
-                self.run.message_counts[topic] += len(offsets)
-                if topic == "/period":
-                    for offset in offsets.tolist():
-                        (length,) = struct.unpack_from("<Q", view, offset + 1)
-                        self.period(view[offset + 9 + _MESSAGE_DATA:offset + 9 + length])
+                if topic == "/period" or topic in self.collect:
+                    wanted.append(offsets)
+                else:
+                    self.run.message_counts[topic] = self.run.message_counts.get(topic, 0)
+                    self.run.message_counts[topic] += len(offsets)
+            # In file order, so each message is counted in the period whose record follows it.
+            for offset in np.sort(np.concatenate(wanted)).tolist() if wanted else ():
+                (length,) = struct.unpack_from("<Q", view, offset + 1)
+                self.message(view[offset + 9:offset + 9 + length])
             return True
         pos = 0
         while pos + _RECORD_PREFIX.size <= size:
@@ -143,6 +216,8 @@ class _Scan:
                 self.message(inner)
             elif opcode == Opcode.CHANNEL:
                 self.channel(bytes(inner))
+            elif opcode == Opcode.SCHEMA:
+                self.schema(bytes(inner))
             pos += 9 + length
         return pos == size
 
@@ -165,14 +240,14 @@ def _message_index(body: memoryview) -> tuple[int, np.ndarray]:
     return channel, entries[1::2]
 
 
-def _scan(path: Path, data: bytes) -> tuple[RunFile, bool]:
-    """Every complete record of `data`; returns the run and whether the footer was reached.
+def _scan(path: Path, data: bytes, collect: frozenset[str]) -> tuple[_Scan, bool]:
+    """Every complete record of `data`; returns the scan and whether the footer was reached.
 
     A chunk is read through the MessageIndex records after it only once a complete record
     follows them (so none of them is missing); otherwise by walking its records.
     """
     run = RunFile(path=path)
-    scan = _Scan(run)
+    scan = _Scan(run, collect)
     view = memoryview(data)
     pos = len(MAGIC)
     chunk, index = None, {}
@@ -191,11 +266,13 @@ def _scan(path: Path, data: bytes) -> tuple[RunFile, bool]:
             damaged = not scan.chunk(chunk, index)
             chunk, index = None, {}
             if damaged:
-                return run, False
+                return scan, False
         if opcode == Opcode.FOOTER:
-            return run, data[end:end + len(MAGIC)] == MAGIC
+            return scan, data[end:end + len(MAGIC)] == MAGIC
         if opcode == Opcode.CHUNK:
             chunk = body
+        elif opcode == Opcode.SCHEMA:
+            scan.schema(bytes(body))
         elif opcode == Opcode.CHANNEL:
             scan.channel(bytes(body))
         elif opcode == Opcode.MESSAGE:
@@ -209,13 +286,14 @@ def _scan(path: Path, data: bytes) -> tuple[RunFile, bool]:
         pos = end
     if chunk is not None:
         scan.chunk(chunk, None)
-    return run, False
+    return scan, False
 
 
-def read_run(path: str | Path, tolerant: bool = True) -> RunFile:
+def read_run(path: str | Path, tolerant: bool = True, topics: Collection[str] = ()) -> RunFile:
     """Read the run log at `path`. tolerant: a killed or truncated run gives what it holds
-    (`truncated` True); otherwise such a file raises RunLogError. A file that is not MCAP or
-    not an excosim run log raises RunLogError."""
+    (`truncated` True); otherwise such a file raises RunLogError. topics: numeric channels to
+    decode into `channels` (e.g. "/joints", "/cylinder/boom"; a topic the file lacks is left
+    out). A file that is not MCAP or not an excosim run log raises RunLogError."""
     path = Path(path)
     try:
         data = path.read_bytes()
@@ -224,7 +302,8 @@ def read_run(path: str | Path, tolerant: bool = True) -> RunFile:
     if not data.startswith(MAGIC):
         raise RunLogError(f"{path} is not an MCAP file (it does not start with the MCAP magic)")
     try:
-        run, complete = _scan(path, data)
+        scan, complete = _scan(path, data, frozenset(topics))
+        run = scan.run
     except (struct.error, UnicodeDecodeError, ValueError, McapError) as exc:
         if isinstance(exc, RunLogError):
             raise
@@ -233,6 +312,7 @@ def read_run(path: str | Path, tolerant: bool = True) -> RunFile:
     if run.metadata.get("excosim.run", {}).get("format") != FORMAT:
         raise RunLogError(f"{path} is an MCAP file but not an excosim run log "
                           "(no excosim.run metadata record)")
+    scan.decode_collected()
     end = run.metadata.get("excosim.end")
     run.finished = end is not None
     if end is not None:

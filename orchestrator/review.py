@@ -1,0 +1,98 @@
+"""What a run log says about its campaign, read from the file alone: the summary `excosim review`
+prints (and gives as JSON) and the per-run figures `excosim compare` sets side by side.
+
+A reviewer may hold only the MCAP file: no scenario file, no FMUs. Everything here comes from
+the file's metadata and /period records (`orchestrator.run_log_read`).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+from orchestrator.run_log_read import RunFile, read_run
+
+WITHIN_KG = 3.0  # the band the paper's Figure 9 holds after period 1 (section 3.2)
+
+
+def load(path: str | Path, topics: tuple[str, ...] = ()) -> RunFile:
+    """The run log at `path`, read tolerantly (a killed run gives its complete periods);
+    RunLogError (one line) if it is not an excosim run log. topics: numeric channels to decode."""
+    return read_run(path, tolerant=True, topics=topics)
+
+
+def target_mass_kg(run: RunFile) -> float:
+    """The campaign's target dug mass m* (kg)."""
+    return float(run.metadata["excosim.run"]["target_mass_kg"])
+
+
+def run_figures(records: list[dict[str, Any]], band_kg: float = WITHIN_KG) -> dict[str, Any]:
+    """Per-run figures from the period records, errors counted after period 1 (period 1 digs at
+    the default D before any weighing, as in the paper's Figure 9):
+
+    periods, resets (periods whose D came from a reset), mean_abs_error_kg and
+    max_abs_error_kg (None without a period after the first), within_band (periods 2.. with
+    |error| <= band_kg), counted (periods 2..), band_kg, mean_duration_s, max_duration_s,
+    peak_jerk_deg_s3 (largest |jerk| of any joint in any period).
+    """
+    after = [abs(r["error_kg"]) for r in records if r["k"] >= 2]
+    durations = [r["duration_s"] for r in records]
+    jerks = [max(r["max_abs_jerk_deg_s3"]) for r in records]
+    return {
+        "periods": len(records),
+        "resets": sum(bool(r.get("reset")) for r in records),
+        "mean_abs_error_kg": math.fsum(after) / len(after) if after else None,
+        "max_abs_error_kg": max(after) if after else None,
+        "within_band": sum(e <= band_kg for e in after),
+        "counted": len(after),
+        "band_kg": band_kg,
+        "mean_duration_s": math.fsum(durations) / len(durations) if durations else None,
+        "max_duration_s": max(durations) if durations else None,
+        "peak_jerk_deg_s3": max(jerks) if jerks else None,
+    }
+
+
+def summary(run: RunFile) -> dict[str, Any]:
+    """The review of a run as plain, JSON-able data (the `excosim review --json` object).
+
+    Keys: path, scenario (name), description, plant ("sim" or "lab"), target_mass_kg (kg),
+    termination ("periods", "workspace_limit", "error"; None when the run did not finish),
+    message (the end record's line), finished, truncated (the file ends early: a killed run),
+    periods (the /period records as the campaign wrote them), figures (`run_figures`),
+    versions (package versions the run used), fmus (component -> sha256).
+    """
+    description = run.metadata["excosim.run"]
+    try:
+        text = run.scenario.get("description", "")
+    except (KeyError, ValueError):
+        text = ""
+    return {
+        "path": str(run.path),
+        "scenario": description.get("scenario_name", ""),
+        "description": text,
+        "plant": description.get("plant_kind", ""),
+        "target_mass_kg": target_mass_kg(run),
+        "termination": run.termination,
+        "message": run.termination_message,
+        "finished": run.finished,
+        "truncated": run.truncated,
+        "periods": run.periods,
+        "figures": run_figures(run.periods),
+        "versions": dict(run.metadata.get("excosim.versions", {})),
+        "fmus": dict(run.metadata.get("excosim.fmus", {})),
+    }
+
+
+def ending(review: dict[str, Any]) -> str:
+    """One line on how the campaign ended, for a person."""
+    n = len(review["periods"])
+    if not review["finished"]:
+        cut = " (the file ends early)" if review["truncated"] else ""
+        return f"did not finish: the log holds {n} complete periods{cut}; a killed run?"
+    words = {"periods": "dug its planned periods", "workspace_limit": "stopped at the workspace "
+             "limit (D out of reach after a reset)", "error": "failed"}
+    line = f"{words.get(review['termination'], review['termination'])} after {n} periods"
+    if review["termination"] != "periods" and review["message"]:
+        line += f": {review['message']}"
+    return line
