@@ -87,6 +87,61 @@ def run(
         _fail(*failure)
 
 
+@app.command("review")
+def review(
+    run_log: Annotated[Path, typer.Argument(help="Run log (.mcap) written by `excosim run`.")],
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print one JSON object (scenario, plant, "
+                           "target_mass_kg, termination, periods, ...).")
+    ] = False,
+    plots: Annotated[
+        Path | None, typer.Option("--plots", help="Write PNG figures into this folder.")
+    ] = None,
+    period: Annotated[
+        int, typer.Option("--period", min=1, help="Period of the per-period figures.")
+    ] = 1,
+) -> None:
+    """Summarise a run from its log alone: scenario, how it ended, one row per period."""
+    from orchestrator.review_command import review_run
+
+    failure = review_run(run_log, as_json, plots, period)
+    if failure is not None:
+        _fail(*failure)
+
+
+@app.command("compare")
+def compare(
+    run_logs: Annotated[list[Path], typer.Argument(help="Run logs (.mcap) to compare.")],
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    plots: Annotated[
+        Path | None, typer.Option("--plots", help="Write the weight-error overlay here.")
+    ] = None,
+) -> None:
+    """Set runs side by side: errors, periods within +/-3 kg, durations, jerk, resets."""
+    from orchestrator.review_command import compare_runs
+
+    failure = compare_runs(run_logs, as_json, plots)
+    if failure is not None:
+        _fail(*failure)
+
+
+@app.command("replay")
+def replay(
+    run_log: Annotated[Path, typer.Argument(help="Run log (.mcap) of a simulated run.")],
+    trust: Annotated[
+        bool, typer.Option("--trust", help="Run attached FMUs even when they differ from "
+                           "FMUs built here from our sources (they are native code).")
+    ] = False,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+) -> None:
+    """Re-run a campaign from the scenario and FMUs in its log; check every period matches."""
+    from orchestrator.replay_command import replay as replay_log
+
+    failure = replay_log(run_log, trust, as_json)
+    if failure is not None:
+        _fail(*failure)
+
+
 def main() -> None:
     """Console-script entry point."""
     try:
