@@ -1,0 +1,106 @@
+"""`excosim replay RUN.mcap [--trust] [--json]`: re-run a logged campaign from the scenario and
+FMUs in its file and check that every period repeats (orchestrator.replay).
+
+Exit status (set by the caller from the returned failure): 0 when the replay matches the log;
+1 when it differs (or our FMUs cannot be built to check the file's against); 2 when the file
+cannot or may not be replayed (not a run log, a lab run, an altered or untrusted FMU, a
+scenario this version no longer accepts).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from rich import box
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from orchestrator.replay import ReplayReport
+
+
+def replay(path: Path, trust: bool, as_json: bool) -> tuple[str, int] | None:
+    """Replay the run at `path`; None when it matches, else (one-line message, exit status).
+    Prints a table per period and a summary line, or with `as_json` one JSON object."""
+    import fmus
+    from orchestrator.replay import ReplayRefused, replay_run
+    from orchestrator.run_log_read import RunLogError
+    from orchestrator.scenario import ScenarioError
+
+    err = Console(stderr=True, highlight=False)
+    columns = (TextColumn("[progress.description]{task.description}"), BarColumn(),
+               MofNCompleteColumn(), TimeElapsedColumn())
+    try:
+        with Progress(*columns, console=err, transient=True,
+                      disable=not err.is_terminal) as bar:
+            task = bar.add_task(f"replaying {path.name}", total=None)
+
+            def progress(record: dict[str, Any], total: int) -> None:
+                bar.update(task, total=total, advance=1,
+                           description=f"replaying {path.name}: period {record['k']}")
+
+            report = replay_run(path, trust=trust, progress=progress)
+    except (RunLogError, ReplayRefused) as error:
+        return str(error), 2
+    except ScenarioError as error:
+        where = f"{error.field}: " if error.field else ""
+        return (f"{path}: the run's scenario does not validate with this version of excosim: "
+                f"{where}{error.reason}"), 2
+    except fmus.BuildError as error:
+        return f"cannot build our FMUs to check the file's FMUs against: {error}", 1
+
+    if as_json:
+        print(json.dumps(report.as_dict(), allow_nan=False))
+    else:
+        # Piped output has no terminal width; rich would assume 80 columns and cut the table.
+        out = Console(highlight=False, width=None if sys.stdout.isatty() else 120)
+        out.print(replay_table(report))
+        out.print(summary_line(report), markup=False, soft_wrap=True)
+    difference = report.first_difference()
+    if difference is not None:
+        return f"replay differs from the log in {difference}", 1
+    return None
+
+
+def _amount(value: float | None, digits: str) -> str:
+    return "-" if value is None else format(value, digits)
+
+
+def replay_table(report: ReplayReport) -> Table:
+    """A rich table, one row per period: k, mass logged and replayed, the absolute
+    differences of mass, deepest point D (larger of y and z) and duration, match."""
+    table = Table(title=f"Replay of {report.path.name} (tolerance {report.tolerance:g})",
+                  box=box.SIMPLE_HEAD,
+                  caption="|d D|: the larger of |d y_D| and |d z_D|; - : no such period")
+    for header in ("k", "mass logged kg", "mass replayed kg", "|d mass| kg", "|d D| m",
+                   "|d duration| s", "match"):
+        table.add_column(header, justify="right",
+                         min_width=max(len(word) for word in header.split()))
+    for p in report.periods:
+        table.add_row(str(p.k), _amount(p.mass_kg_logged, ".6f"),
+                      _amount(p.mass_kg_replayed, ".6f"), _amount(p.abs_diff_mass_kg, ".2g"),
+                      _amount(p.abs_diff_deepest_point_m, ".2g"),
+                      _amount(p.abs_diff_duration_s, ".2g"),
+                      "[green]yes[/]" if p.matches else "[red]no[/]")
+    return table
+
+
+def summary_line(report: ReplayReport) -> str:
+    """Whether the replay matches, over how many periods, the largest differences and how
+    each FMU was trusted."""
+    largest = (f"max |difference|: mass {_amount(report.max_abs_diff_mass_kg, '.2g')} kg, "
+               f"D {_amount(report.max_abs_diff_deepest_point_m, '.2g')} m, duration "
+               f"{_amount(report.max_abs_diff_duration_s, '.2g')} s")
+    trusted = sorted({f"{c.attachment} ({c.trusted_by})" for c in report.fmus.values()})
+    verdict = "matches" if report.matches else "differs from"
+    if report.termination_compared:
+        ending = f"; both ended: {report.replayed_termination}"
+    else:
+        how = "killed" if report.logged_termination is None else "interrupted"
+        ending = f"; the logged run was {how}: its complete periods were replayed"
+    count = len(report.periods)
+    return (f"replay {verdict} the log: {count} period{'' if count == 1 else 's'}, {largest} "
+            f"(tolerance {report.tolerance:g}){ending}; FMUs: {', '.join(trusted)}")
