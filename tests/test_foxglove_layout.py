@@ -1,0 +1,323 @@
+"""foxglove/excavator-layout.json, the Foxglove layout for excosim run logs, checked against a
+real run log so that renaming a topic, a field or a frame breaks this test, not the layout.
+
+The layout's shape follows the layouts Foxglove exports and imports ("Layouts" menu, "Import from
+file..."): "configById" (panel id "<Type>!<suffix>" -> panel config), "layout" (a mosaic tree of
+panel ids with direction, first, second, splitPercentage), "globalVariables", "userNodes",
+"playbackConfig"; see Foxglove's own examples in foxglove/foxglove-sdk
+(python/foxglove-sdk-examples/so101-visualization/foxglove/lerobot_layout.json). Message-path
+functions are the ones Foxglove documents for the Plot panel
+(docs.foxglove.dev/docs/visualization/panels/plot, "Message path functions").
+
+Topics, schemas and fields come from a 2-period run of scenarios/paper-2020.toml, read with the
+`mcap` package: protobuf fields from the FileDescriptorSets stored in the file, JSON fields from
+the stored JSON schema and the /period messages themselves, frames from /tf decoded with
+mcap-protobuf-support and composed with scipy's rotations.
+"""
+
+import json
+import math
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+from google.protobuf import descriptor_pb2
+from mcap.reader import make_reader
+from mcap_protobuf.decoder import DecoderFactory
+from scipy.spatial.transform import Rotation
+
+from orchestrator.campaign import run_campaign
+from orchestrator.review import WITHIN_KG
+from orchestrator.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+LAYOUT_PATH = ROOT / "foxglove" / "excavator-layout.json"
+SCENARIO = ROOT / "scenarios" / "paper-2020.toml"
+PANEL_TYPES = {"3D", "Plot", "RawMessages"}
+# docs.foxglove.dev/docs/visualization/panels/plot, "Message path functions" (scalar, operand,
+# vector, struct and time-series functions).
+PATH_FUNCTIONS = {
+    "abs", "acos", "asin", "atan", "ceil", "cos", "degrees", "log", "log1p", "log2", "log10",
+    "negative", "radians", "round", "sign", "sin", "sqrt", "tan", "trunc", "add", "sub", "mul",
+    "div", "norm", "rpy", "quat", "delta", "derivative", "timedelta",
+}
+PATH = re.compile(r"^(?P<topic>/[A-Za-z0-9_/]+)(?P<fields>(\.[A-Za-z_]\w*(\[-?\d+\])?)*)"
+                  r"(?P<functions>(\.@[a-z0-9]+(\([^)]*\))?)*)$")
+# What a field's unit suffix becomes after the path's functions (SI name -> axis unit).
+UNIT_SUFFIXES = {"_rad": "rad", "_Pa": "Pa", "_kg": "kg", "_N": "N"}
+CONVERSIONS = {("rad", "degrees", None): "deg", ("Pa", "div", 1e5): "bar"}
+
+
+@dataclass
+class RunLogFacts:
+    schemas: dict          # topic -> schema name
+    fields: dict           # topic -> resolver of a field path: list[(name, index)] -> bool
+    frames: set            # every frame id in /tf
+    root_frames: set       # frames that are never a child
+    points_world_m: np.ndarray  # (n, 3): frame origins over the run, pile surfaces
+
+
+def _protobuf_resolver(schema) -> Callable:
+    files = descriptor_pb2.FileDescriptorSet.FromString(schema.data).file
+    types = {f"{file.package}.{message.name}": message
+             for file in files for message in file.message_type}
+
+    def resolve(path) -> bool:
+        message = types[schema.name]
+        for position, (name, _index) in enumerate(path):
+            found = [field for field in message.field if field.name == name]
+            if not found:
+                return False
+            if position < len(path) - 1:
+                if found[0].type != descriptor_pb2.FieldDescriptorProto.TYPE_MESSAGE:
+                    return False
+                message = types[found[0].type_name.lstrip(".")]
+        return True
+    return resolve
+
+
+def _json_resolver(schema, messages: list[dict]) -> Callable:
+    json_schema = json.loads(schema.data)
+
+    def resolve(path) -> bool:
+        node, values = json_schema, messages
+        for name, index in path:
+            node = node.get("properties", {}).get(name)
+            if node is None or not all(name in value for value in values):
+                return False
+            values = [value[name] for value in values]
+            if index is not None:
+                if node.get("type") != "array":
+                    return False
+                node, values = node.get("items", {}), [value[index] for value in values]
+        return True
+    return resolve
+
+
+def _frame_origins(transforms) -> dict:
+    """Frame -> origin (3,) m in the root frame, composing parent -> child transforms."""
+    poses = {}
+    for transform in transforms:
+        parent_xyz, parent_rotation = poses.get(transform.parent_frame_id,
+                                                (np.zeros(3), Rotation.identity()))
+        t, q = transform.translation, transform.rotation
+        rotation = Rotation.from_quat([q.x, q.y, q.z, q.w])
+        poses[transform.child_frame_id] = (parent_xyz + parent_rotation.apply([t.x, t.y, t.z]),
+                                           parent_rotation * rotation)
+    return {frame: xyz for frame, (xyz, _) in poses.items()}
+
+
+@pytest.fixture(scope="module")
+def run_log(tmp_path_factory) -> RunLogFacts:
+    path = tmp_path_factory.mktemp("foxglove") / "run.mcap"
+    result = run_campaign(load_scenario(SCENARIO, ["periods=2"]), log_path=path)
+    assert result.termination == "periods", result
+    with open(path, "rb") as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        summary = reader.get_summary()
+        schemas = {channel.topic: summary.schemas[channel.schema_id]
+                   for channel in summary.channels.values()}
+        periods = [json.loads(message.data)
+                   for _, _, message in reader.iter_messages(topics=["/period"])]
+        parents, children, points = set(), set(), []
+        for _, _, _, tf in reader.iter_decoded_messages(topics=["/tf"]):
+            parents |= {transform.parent_frame_id for transform in tf.transforms}
+            children |= {transform.child_frame_id for transform in tf.transforms}
+            points += list(_frame_origins(tf.transforms).values())
+        for _, _, _, profile in reader.iter_decoded_messages(topics=["/pile/profile"]):
+            # world x = -y_machine (orchestrator.run_log_scene)
+            points += [[-y, 0.0, z] for y, z in zip(profile.y_m, profile.z_m, strict=True)]
+    fields = {topic: (_json_resolver(schema, periods) if schema.encoding == "jsonschema"
+                      else _protobuf_resolver(schema))
+              for topic, schema in schemas.items()}
+    return RunLogFacts({topic: schema.name for topic, schema in schemas.items()}, fields,
+                       parents | children, parents - children, np.array(points))
+
+
+@pytest.fixture(scope="module")
+def layout() -> dict:
+    return json.loads(LAYOUT_PATH.read_text(encoding="utf-8"))
+
+
+def mosaic_leaves(node) -> list[str]:
+    """Panel ids of a mosaic tree, left to right; ValueError naming a malformed node."""
+    if isinstance(node, str):
+        return [node]
+    if not (isinstance(node, dict) and set(node) == {"direction", "first", "second",
+                                                     "splitPercentage"}):
+        raise ValueError(f"mosaic node must be a panel id or a split, got {node!r}")
+    if node["direction"] not in ("row", "column") or not 0 < node["splitPercentage"] < 100:
+        raise ValueError(f"bad split {node['direction']!r} at {node['splitPercentage']!r}")
+    return mosaic_leaves(node["first"]) + mosaic_leaves(node["second"])
+
+
+def parse_path(value: str):
+    """(topic, [(field, index or None)], [(function, operand or None)]) of a message path."""
+    match = PATH.match(value)
+    if match is None:
+        raise ValueError(f"not a message path: {value!r}")
+    fields = [(name, None if index == "" else int(index)) for name, index in
+              re.findall(r"\.([A-Za-z_]\w*)(?:\[(-?\d+)\])?", match["fields"])]
+    functions = [(name, None if operand == "" else float(operand)) for name, operand in
+                 re.findall(r"\.@([a-z0-9]+)(?:\(([^)]*)\))?", match["functions"])]
+    return match["topic"], fields, functions
+
+
+def is_reference_line(value: str) -> bool:
+    try:
+        float(value)
+    except ValueError:
+        return False
+    return True
+
+
+def message_paths(layout: dict) -> list[str]:
+    """Every message path or topic the panels read (reference lines left out)."""
+    out = []
+    for panel_id, config in layout["configById"].items():
+        kind = panel_id.split("!")[0]
+        if kind == "Plot":
+            out += [path["value"] for path in config["paths"]
+                    if not is_reference_line(path["value"])]
+        elif kind == "RawMessages":
+            out.append(config["topicPath"])
+        elif kind == "3D":
+            out += list(config["topics"])
+    return out
+
+
+def unresolved(layout: dict, facts: RunLogFacts) -> list[str]:
+    """The layout's references that the run log does not have: topics, fields, frames."""
+    missing = []
+    for value in message_paths(layout):
+        topic, fields, _ = parse_path(value)
+        if topic not in facts.schemas:
+            missing.append(f"topic {topic} ({value})")
+        elif fields and not facts.fields[topic](fields):
+            missing.append(f"field of {facts.schemas[topic]} ({value})")
+    for panel_id, config in layout["configById"].items():
+        if panel_id.startswith("3D!"):
+            frames = [config["followTf"], config["fixedFrame"]]
+            frames += [layer["frameId"] for layer in config["layers"].values()]
+            missing += [f"frame {frame}" for frame in frames if frame not in facts.frames]
+    return missing
+
+
+def plots(layout: dict) -> dict:
+    return {key: value for key, value in layout["configById"].items() if key.startswith("Plot!")}
+
+
+def test_layout_has_the_shape_foxglove_imports(layout):
+    assert set(layout) == {"configById", "layout", "globalVariables", "userNodes",
+                           "playbackConfig"}
+    assert layout["globalVariables"] == {} and layout["userNodes"] == {}
+    assert layout["playbackConfig"]["speed"] > 0
+    for panel_id, config in layout["configById"].items():
+        kind, _, suffix = panel_id.partition("!")
+        assert kind in PANEL_TYPES and re.fullmatch(r"[A-Za-z0-9_]+", suffix), panel_id
+        assert isinstance(config["foxglovePanelTitle"], str) and config["foxglovePanelTitle"]
+    for panel_id, config in plots(layout).items():
+        assert config["xAxisVal"] == "timestamp" and config["isSynced"], panel_id
+        for path in config["paths"]:
+            assert path["enabled"] is True and path["timestampMethod"] == "receiveTime", path
+            assert path["label"] and re.fullmatch(r"#[0-9a-f]{6}", path["color"]), path
+
+
+def test_every_panel_in_the_tree_has_a_config_and_every_config_is_placed(layout):
+    leaves = mosaic_leaves(layout["layout"])
+    assert len(leaves) == len(set(leaves)), leaves
+    assert set(leaves) == set(layout["configById"])
+
+
+def test_every_topic_field_and_frame_exists_in_a_run_log(layout, run_log):
+    assert unresolved(layout, run_log) == []
+
+
+@pytest.mark.parametrize("old, new", [
+    ("/joints.measured_boom_rad", "/joints.measured_boom"),  # a renamed protobuf field
+    ("/cylinder/stick.p_B_Pa", "/cylinders/stick.p_B_Pa"),   # a renamed topic
+    ("/period.error_kg", "/period.weight_error_kg"),          # a renamed JSON field
+    ('"followTf": "world"', '"followTf": "map"'),             # a frame /tf does not have
+    ('"/scene/pile": {', '"/scene/piles": {'),                # a 3D topic
+])
+def test_a_renamed_topic_field_or_frame_is_caught(layout, run_log, old, new):
+    text = json.dumps(layout)
+    assert old in text
+    assert unresolved(json.loads(text.replace(old, new)), run_log) != []
+
+
+def test_3d_panel_draws_the_arm_and_pile_in_the_root_frame(layout, run_log):
+    (config,) = [c for key, c in layout["configById"].items() if key.startswith("3D!")]
+    assert config["followTf"] == config["fixedFrame"] == "world"
+    assert run_log.root_frames == {"world"}
+    assert {"boom", "stick", "bucket", "bucket_tip"} <= run_log.frames
+    shown = {topic for topic, settings in config["topics"].items() if settings["visible"]}
+    assert {run_log.schemas[topic] for topic in shown} == {"foxglove.FrameTransforms",
+                                                           "foxglove.SceneUpdate"}
+    assert shown == {"/tf", "/scene/arm", "/scene/pile"}
+
+
+def camera_pose(camera: dict):
+    """Camera position (3,) and unit view direction (3,) in the display frame, as Foxglove's 3D
+    panel places it: spherical (distance, phi, -thetaOffset) turned +90 deg about x, about
+    targetOffset (foxglove/studio, ThreeDeeRender/renderables/CameraStateSettings.ts)."""
+    r, phi = camera["distance"], math.radians(camera["phi"])
+    theta = -math.radians(camera["thetaOffset"])
+    target = np.array(camera["targetOffset"], dtype=float)
+    position = target + r * np.array([math.sin(phi) * math.sin(theta),
+                                       -math.sin(phi) * math.cos(theta), math.cos(phi)])
+    return position, (target - position) / r
+
+
+def test_camera_sees_the_whole_run_from_the_side(layout, run_log):
+    camera = layout["configById"]["3D!arm"]["cameraState"]
+    position, forward = camera_pose(camera)
+    # The arm moves in the world x-z plane: look along +y, at most 20 deg off it.
+    assert forward @ np.array([0.0, 1.0, 0.0]) >= math.cos(math.radians(20))
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    relative = run_log.points_world_m - position
+    depth = relative @ forward
+    assert np.all((depth > camera["near"]) & (depth < camera["far"]))
+    # Every frame origin and pile surface point inside the view of a square panel.
+    half_fov = math.radians(camera["fovy"]) / 2
+    assert np.max(np.abs(relative @ right) / depth) <= math.tan(half_fov)
+    assert np.max(np.abs(relative @ up) / depth) <= math.tan(half_fov)
+
+
+def displayed_unit(value: str) -> str:
+    _, fields, functions = parse_path(value)
+    name = fields[-1][0]
+    (unit,) = [unit for suffix, unit in UNIT_SUFFIXES.items() if name.endswith(suffix)]
+    for function, operand in functions:
+        unit = CONVERSIONS[(unit, function, operand)]
+    return unit
+
+
+def test_every_series_is_in_the_unit_its_axis_names(layout):
+    for panel_id, config in plots(layout).items():
+        units = {displayed_unit(path["value"]) for path in config["paths"]
+                 if not is_reference_line(path["value"])}
+        assert units == {config["yAxisLabel"]}, panel_id
+
+
+def test_only_documented_path_functions_are_used(layout):
+    used = {function for value in message_paths(layout)
+            for function, _ in parse_path(value)[2]}
+    assert used and used <= PATH_FUNCTIONS
+
+
+def test_reference_lines_are_the_review_band_and_the_paper_target(layout):
+    def lines(panel_id):
+        return sorted(float(path["value"]) for path in layout["configById"][panel_id]["paths"]
+                      if is_reference_line(path["value"]))
+
+    assert lines("Plot!error") == [-WITHIN_KG, WITHIN_KG]
+    assert lines("Plot!mass") == [load_scenario(SCENARIO).target_mass_kg]
+    others = [lines(panel_id) for panel_id in plots(layout)
+              if panel_id not in ("Plot!error", "Plot!mass")]
+    assert others and all(found == [] for found in others)
