@@ -117,7 +117,7 @@ def compare(
         Path | None, typer.Option("--plots", help="Write the weight-error overlay here.")
     ] = None,
 ) -> None:
-    """Set runs side by side: errors, periods within +/-3 kg, durations, jerk, resets."""
+    """Set runs side by side: errors, periods on target, durations, jerk, resets."""
     from orchestrator.review_command import compare_runs
 
     failure = compare_runs(run_logs, as_json, plots)

@@ -13,7 +13,14 @@ from typing import Any
 
 from orchestrator.run_log_read import RunFile, read_run
 
-WITHIN_KG = 3.0  # the band the paper's Figure 9 holds after period 1 (section 3.2)
+WITHIN_KG = 3.0  # the band the paper's Figure 9 holds after period 1 (section 3.2), at m* = 30 kg
+BAND_FRACTION = WITHIN_KG / 30.0  # the same band for any target: 10 % of m*
+
+
+def band_kg(target_mass_kg: float) -> float:
+    """Half-width (kg) of the band around the target that counts as on target: 10 % of m*,
+    i.e. the paper's +-3 kg at its 30 kg (a lab bucket's 1.2 kg gets +-0.12 kg)."""
+    return BAND_FRACTION * float(target_mass_kg)
 
 
 def load(path: str | Path, topics: tuple[str, ...] = ()) -> RunFile:
@@ -31,6 +38,7 @@ def run_figures(records: list[dict[str, Any]], band_kg: float = WITHIN_KG) -> di
     """Per-run figures from the period records, errors counted after period 1 (period 1 digs at
     the default D before any weighing, as in the paper's Figure 9):
 
+    band_kg: half-width of the on-target band (`band_kg(m*)`; 3 kg for the paper's 30 kg).
     periods, resets (periods whose D came from a reset), mean_abs_error_kg and
     max_abs_error_kg (None without a period after the first), within_band (periods 2.. with
     |error| <= band_kg), counted (periods 2..), band_kg, mean_duration_s, max_duration_s,
@@ -78,7 +86,7 @@ def summary(run: RunFile) -> dict[str, Any]:
         "finished": run.finished,
         "truncated": run.truncated,
         "periods": run.periods,
-        "figures": run_figures(run.periods),
+        "figures": run_figures(run.periods, band_kg(target_mass_kg(run))),
         "versions": dict(run.metadata.get("excosim.versions", {})),
         "fmus": dict(run.metadata.get("excosim.fmus", {})),
     }

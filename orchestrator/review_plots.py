@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from orchestrator.review import WITHIN_KG, target_mass_kg
+from orchestrator.review import band_kg, target_mass_kg
 from orchestrator.run_log_read import RunFile
 from plant_models.plant import JOINTS
 
@@ -81,13 +81,14 @@ def plot_joints(run: RunFile, k: int):
 
 
 def plot_weight_error(run: RunFile):
-    """Weight error m* - m per period with the +-3 kg band and resets marked (paper Fig. 9)."""
+    """Weight error m* - m per period with the on-target band (+-3 kg at m* = 30 kg) and
+    resets marked (paper Fig. 9)."""
     plt = _pyplot()
     k = np.array([r["k"] for r in run.periods])
     error = np.array([r["error_kg"] for r in run.periods])
     fig, ax = plt.subplots(figsize=(8, 4.5), layout="constrained")
-    ax.axhspan(-WITHIN_KG, WITHIN_KG, color="tab:green", alpha=0.12,
-               label=f"±{WITHIN_KG:g} kg")
+    band = band_kg(target_mass_kg(run))
+    ax.axhspan(-band, band, color="tab:green", alpha=0.12, label=f"±{band:g} kg")
     ax.axhline(0.0, color="0.4", lw=0.8)
     ax.plot(k, error, "o-", color="tab:blue", label="m* − m")
     for r in run.periods:
@@ -192,7 +193,10 @@ def plot_error_overlay(runs: list[RunFile], labels: list[str]):
     """Weight error per period of several runs on one axis (`excosim compare`)."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8, 4.5), layout="constrained")
-    ax.axhspan(-WITHIN_KG, WITHIN_KG, color="tab:green", alpha=0.12, label=f"±{WITHIN_KG:g} kg")
+    bands = {band_kg(target_mass_kg(run)) for run in runs}
+    if len(bands) == 1:  # runs with different targets have different bands: draw none
+        band = bands.pop()
+        ax.axhspan(-band, band, color="tab:green", alpha=0.12, label=f"±{band:g} kg")
     ax.axhline(0.0, color="0.4", lw=0.8)
     for run, label in zip(runs, labels, strict=True):
         ax.plot([r["k"] for r in run.periods], [r["error_kg"] for r in run.periods], "o-",

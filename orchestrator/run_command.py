@@ -18,7 +18,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-WITHIN_KG = 3.0  # the band the paper's Figure 9 holds after period 1 (section 3.2)
+from orchestrator.review import band_kg
 
 
 def default_output(scenario_name: str, now: datetime | None = None) -> Path:
@@ -59,7 +59,7 @@ def run(scenario_path: Path, output: Path | None, overrides: list[str]) -> tuple
 
         result = run_campaign(scenario, log_path=log_path, progress=progress)
     out.print(period_table(result.records, scenario.target_mass_kg))
-    out.print(summary_line(result), markup=False, soft_wrap=True)
+    out.print(summary_line(result, scenario.target_mass_kg), markup=False, soft_wrap=True)
     if result.termination == "error":
         done = len(result.records)
         return (f"run failed: {result.message} (log {log_path} is readable up to period "
@@ -82,7 +82,9 @@ def _check_output(path: Path) -> str | None:
 
 
 def period_table(records: list[dict[str, Any]], target_mass_kg: float) -> Table:
-    """A rich table, one row per period: k, D, mass, error, reset, duration, peak jerk, planner."""
+    """A rich table, one row per period: k, D, mass, error (green within the on-target band,
+    `orchestrator.review.band_kg`), reset, duration, peak jerk, planner."""
+    band = band_kg(target_mass_kg)
     table = Table(title=f"Digging periods (target {target_mass_kg:g} kg)", box=box.SIMPLE_HEAD,
                   caption="duration: of the planned trajectory; peak jerk: largest |jerk| of "
                   "the three joints; planner: optimisation wall time")
@@ -93,7 +95,7 @@ def period_table(records: list[dict[str, Any]], target_mass_kg: float) -> Table:
     for r in records:
         y, z = r["deepest_point_m"]
         error = r["error_kg"]
-        style = "green" if abs(error) <= WITHIN_KG else "yellow"
+        style = "green" if abs(error) <= band else "yellow"
         table.add_row(str(r["k"]), f"({y:.2f}, {z:.3f})", f"{r['mass_kg']:.2f}",
                       f"[{style}]{error:+.2f}[/]", "yes" if r["reset"] else "",
                       f"{r['duration_s']:.2f}", f"{max(r['max_abs_jerk_deg_s3']):.1f}",
@@ -101,10 +103,12 @@ def period_table(records: list[dict[str, Any]], target_mass_kg: float) -> Table:
     return table
 
 
-def summary_line(result) -> str:
-    """termination, periods dug, periods within +-3 kg after period 1, log path."""
-    within, counted = result.periods_within(WITHIN_KG, first_period=2)
+def summary_line(result, target_mass_kg: float) -> str:
+    """termination, periods dug, periods within the on-target band after period 1 (+-3 kg at
+    the paper's 30 kg), log path."""
+    band = band_kg(target_mass_kg)
+    within, counted = result.periods_within(band, first_period=2)
     share = f"{within}/{counted} ({100.0 * within / counted:.0f} %)" if counted else "none"
     log = f"; log: {result.log_path}" if result.log_path is not None else ""
     return (f"termination: {result.termination} ({len(result.records)} periods dug); within "
-            f"+/-{WITHIN_KG:g} kg after period 1: {share}{log}")
+            f"+/-{band:g} kg after period 1: {share}{log}")
