@@ -34,6 +34,10 @@ from planner.trajectory import JointTrajectory
 from plant_models.geometry import Unreachable
 from plant_models.plant import JointReference, Plant
 
+# End message of a campaign stopped from outside (Ctrl-C, SystemExit): its ending says nothing
+# about the campaign (orchestrator.replay does not compare it).
+INTERRUPTED = "interrupted"
+
 
 @dataclass
 class CampaignResult:
@@ -126,7 +130,7 @@ def run_campaign(
         period = len(records) + 1
         message = f"period {period}: {type(failure).__name__}: {failure}".replace("\n", " ")
     except BaseException:
-        _close_all(plant, log, "error", "interrupted")
+        _close_all(plant, log, "error", INTERRUPTED)
         raise
     termination, message, error = _close_all(plant, log, termination, message, error)
     return CampaignResult(records, termination, message, scenario,

@@ -26,6 +26,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path, PurePosixPath
 from typing import Any
 
+from orchestrator.campaign import INTERRUPTED
 from orchestrator.replay_compare import TOLERANCE, PeriodComparison, compare_periods
 from orchestrator.run_log_read import RunFile, read_run
 from orchestrator.scenario import PLANT_ROLES, ScenarioError
@@ -200,7 +201,7 @@ def _replay_length(run: RunFile, scenario_periods: Any) -> tuple[int, bool]:
     limit or in an error is given one period more, where it stopped; a killed or interrupted
     run (campaign: termination "error", message "interrupted") replays what it holds."""
     logged = len(run.periods)
-    interrupted = run.termination == "error" and run.termination_message == "interrupted"
+    interrupted = run.termination == "error" and run.termination_message == INTERRUPTED
     if run.finished and not interrupted and run.termination in ("workspace_limit", "error"):
         limit = scenario_periods if isinstance(scenario_periods, int) else logged + 1
         return max(1, min(logged + 1, limit)), True
