@@ -13,7 +13,7 @@ import zipfile
 from pathlib import Path
 
 import pytest
-from mcap.reader import make_reader
+from run_log_files import chunks, cut_inside_chunk
 
 import fmus
 from orchestrator import campaign
@@ -71,12 +71,6 @@ def annotated_run(runs, annotated_fmu):
 
 def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
-
-
-def _chunks(path: Path):
-    with open(path, "rb") as stream:
-        return sorted(make_reader(stream).get_summary().chunk_indexes,
-                      key=lambda c: c.chunk_start_offset)
 
 
 def _assert_repeats(report: ReplayReport, records: list[dict]) -> None:
@@ -151,9 +145,7 @@ def test_an_altered_attachment_is_refused_even_with_trust(paper_run, tmp_path):
 
 def test_a_killed_run_replays_its_complete_periods(paper_run, tmp_path):
     path, records = paper_run
-    second = _chunks(path)[1]  # one chunk per period
-    cut = tmp_path / "killed.mcap"
-    cut.write_bytes(path.read_bytes()[:second.chunk_start_offset + second.chunk_length // 2])
+    cut = cut_inside_chunk(path, tmp_path / "killed.mcap", index=1)  # one chunk per period
     report = replay_run(cut)
     _assert_repeats(report, records[:1])
     assert report.logged_termination is None and not report.termination_compared
@@ -259,7 +251,7 @@ def test_replay_command_prints_a_table_and_refuses_in_one_line(annotated_run, tm
 def test_replay_command_reports_a_plant_that_weighs_differently(paper_run, tmp_path,
                                                                 monkeypatch, capsys):
     path, records = paper_run
-    second = _chunks(path)[1]
+    second = chunks(path)[1]
     cut = tmp_path / "one-period.mcap"
     cut.write_bytes(path.read_bytes()[:second.chunk_start_offset])
     real_build = campaign.build_plant

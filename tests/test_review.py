@@ -11,6 +11,7 @@ import pytest
 from mcap.reader import make_reader
 from mcap.writer import Writer
 from mcap_protobuf.decoder import DecoderFactory
+from run_log_files import cut_inside_chunk
 from typer.testing import CliRunner
 
 from orchestrator.campaign import run_campaign
@@ -128,12 +129,7 @@ def test_a_period_beyond_the_run_is_refused(paper_run, tmp_path):
 def test_a_file_cut_inside_a_chunk_is_reviewed_up_to_its_last_complete_period(paper_run,
                                                                               tmp_path):
     path, result = paper_run
-    with open(path, "rb") as stream:
-        chunks = sorted(make_reader(stream).get_summary().chunk_indexes,
-                        key=lambda c: c.chunk_start_offset)
-    last = chunks[-1]
-    cut = tmp_path / "killed.mcap"
-    cut.write_bytes(path.read_bytes()[:last.chunk_start_offset + last.chunk_length // 2])
+    cut = cut_inside_chunk(path, tmp_path / "killed.mcap")
     data = json.loads(_review(cut, "--json").stdout)
     assert data["periods"] == json.loads(json.dumps(result.records[:2]))
     assert not data["finished"] and data["truncated"] and data["termination"] is None

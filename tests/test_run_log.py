@@ -28,6 +28,7 @@ from mcap.records import Chunk, MessageIndex
 from mcap.stream_reader import StreamReader
 from mcap.writer import Writer
 from mcap_protobuf.decoder import DecoderFactory
+from run_log_files import chunks, cut_inside_chunk
 from scipy.spatial.transform import Rotation
 
 from orchestrator.run_log import RunLog
@@ -327,12 +328,7 @@ def test_a_killed_run_keeps_its_finished_periods(tmp_path, fmus):
 def test_a_file_cut_inside_a_chunk_gives_its_complete_periods(tmp_path, fmus):
     path = tmp_path / "run.mcap"
     write_run(path, fmus)
-    with open(path, "rb") as stream:
-        chunks = sorted(make_reader(stream).get_summary().chunk_indexes,
-                        key=lambda c: c.chunk_start_offset)
-    last = chunks[-1]
-    cut = tmp_path / "cut.mcap"
-    cut.write_bytes(path.read_bytes()[:last.chunk_start_offset + last.chunk_length // 2])
+    cut = cut_inside_chunk(path, tmp_path / "cut.mcap")
     run = read_run(cut)
     assert run.periods == [record(1), record(2)]
     assert run.truncated and not run.finished
@@ -343,11 +339,9 @@ def test_a_file_cut_inside_a_chunk_gives_its_complete_periods(tmp_path, fmus):
 def test_a_damaged_chunk_ends_the_readable_part(tmp_path, fmus):
     path = tmp_path / "run.mcap"
     write_run(path, fmus)
-    with open(path, "rb") as stream:
-        chunks = sorted(make_reader(stream).get_summary().chunk_indexes,
-                        key=lambda c: c.chunk_start_offset)
+    second = chunks(path)[1]
     data = bytearray(path.read_bytes())
-    data[chunks[1].chunk_start_offset + chunks[1].chunk_length - 100] ^= 0xFF
+    data[second.chunk_start_offset + second.chunk_length - 100] ^= 0xFF
     path.write_bytes(bytes(data))
     run = read_run(path)
     assert run.periods == [record(1)] and run.truncated and not run.finished

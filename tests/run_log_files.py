@@ -1,0 +1,20 @@
+"""Test helper: the chunks of a run log, and copies of it cut the way a killed run leaves it."""
+
+from pathlib import Path
+
+from mcap.reader import make_reader
+
+
+def chunks(path: Path) -> list:
+    """The file's chunk indexes (mcap ChunkIndex records) in file order: one per period."""
+    with open(path, "rb") as stream:
+        return sorted(make_reader(stream).get_summary().chunk_indexes,
+                      key=lambda c: c.chunk_start_offset)
+
+
+def cut_inside_chunk(path: Path, cut: Path, index: int = -1) -> Path:
+    """Write to `cut` the bytes of `path` up to the middle of chunk `index` (a run killed while
+    writing that period) and return `cut`."""
+    chunk = chunks(path)[index]
+    cut.write_bytes(path.read_bytes()[:chunk.chunk_start_offset + chunk.chunk_length // 2])
+    return cut
