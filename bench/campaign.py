@@ -31,9 +31,12 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from fmus.runs import FastSlave, run_ecospy  # noqa: E402
-from orchestrator import campaign, period_plan, run_log, simulated_excavator  # noqa: E402
-from orchestrator.master import fmu_path  # noqa: E402
+from orchestrator.campaign import loop as campaign  # noqa: E402
+from orchestrator.plants import simulated_excavator  # noqa: E402
+from orchestrator.plants.master import fmu_path  # noqa: E402
+from orchestrator.runlog import writer as run_log  # noqa: E402
 from orchestrator.scenario import load_scenario  # noqa: E402
+from planner import period_plan  # noqa: E402
 from plant_models.linkage import JOINT_NAMES  # noqa: E402
 from plant_models.model_spec import CYLINDER_OUTPUTS, PILE_OUTPUTS  # noqa: E402
 

@@ -4,7 +4,7 @@ drawing its figures.
     python bench/review.py
 
 Runs the paper scenario (20 periods) into a temporary log, then reads the channels the figures
-use three times with `orchestrator.run_log_read.read_run(topics=...)` and, side by side, with
+use three times with `orchestrator.runlog.read_run(topics=...)` and, side by side, with
 the `mcap` package's reader and mcap-protobuf-support's decoder (protobuf's own parser, one
 Python object per message). Prints messages/s of each and their ratio, and the seconds
 `excosim review --plots` spends drawing.
@@ -25,8 +25,8 @@ from mcap_protobuf.decoder import DecoderFactory
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from orchestrator.campaign import run_campaign  # noqa: E402
-from orchestrator.review_plots import PLOT_TOPICS, write_plots  # noqa: E402
-from orchestrator.run_log_read import read_run  # noqa: E402
+from orchestrator.review.plots import PLOT_TOPICS, write_plots  # noqa: E402
+from orchestrator.runlog import read_run  # noqa: E402
 from orchestrator.scenario import load_scenario  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent

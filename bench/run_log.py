@@ -8,7 +8,7 @@ three cylinders (x, v, p_A, p_B, F) and the pile/bucket outputs, a 221-cell pile
 factor >= 100 (about 2.6 s for 260 s simulated), of which logging should take at most 10 %.
 
 Also printed: the same number of messages through the foxglove SDK's `Channel.log`, one call per
-pre-encoded message (what `orchestrator.run_log_mcap` avoids), and reading the file back.
+pre-encoded message (what `orchestrator.runlog.mcap_records` avoids), and reading the file back.
 """
 
 from __future__ import annotations
@@ -20,8 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from orchestrator.run_log import RunLog
-from orchestrator.run_log_read import read_run
+from orchestrator.runlog import RunLog, read_run
 from plant_models import presets
 from plant_models.plant import JOINTS, PeriodMeasurement
 
@@ -90,8 +89,9 @@ def main() -> None:
 
 def sdk_seconds(count: int) -> float:
     """Wall time of `count` Channel.log calls of 60-byte payloads into an MCAP file."""
-    import foxglove
     from foxglove.mcap import MCAPWriteOptions
+
+    import foxglove
 
     context = foxglove.Context()
     target = Path(tempfile.mkdtemp()) / "sdk.mcap"

@@ -26,8 +26,8 @@ import numpy as np
 sys.path[0] = str(Path(__file__).resolve().parents[1])
 
 from fmus.runs import FastSlave, load_ecospy  # noqa: E402
-from orchestrator.master import fmu_path  # noqa: E402
-from orchestrator.simulated_excavator import SimulatedExcavator  # noqa: E402
+from orchestrator.plants.master import fmu_path  # noqa: E402
+from orchestrator.plants.simulated_excavator import SimulatedExcavator  # noqa: E402
 from planner.digging_path import paper_joint_via_points  # noqa: E402
 from planner.trajectory import plan_trajectory  # noqa: E402
 from plant_models.hydraulics import default_config  # noqa: E402

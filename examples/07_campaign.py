@@ -13,7 +13,7 @@ import tempfile
 from pathlib import Path
 
 from orchestrator.campaign import run_campaign
-from orchestrator.run_log_read import read_run
+from orchestrator.runlog import read_run
 from orchestrator.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent

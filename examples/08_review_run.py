@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from orchestrator.campaign import run_campaign
-from orchestrator.review_plots import plot_tip_paths, save_figure
-from orchestrator.run_log_read import read_run
+from orchestrator.review.plots import plot_tip_paths, save_figure
+from orchestrator.runlog import read_run
 from orchestrator.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent

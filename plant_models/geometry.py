@@ -92,13 +92,6 @@ class ExcavatorGeometry:
             limits.append(_check_cylinder(self.name, joint, cylinder))
         object.__setattr__(self, "joint_limits_rad", tuple(limits))
 
-    @staticmethod
-    def preset(name: str) -> ExcavatorGeometry:
-        """The named preset ("paper" or "lab"); ValueError for an unknown name."""
-        from plant_models import presets
-
-        return presets.get(name)
-
 
 def _check_cylinder(machine: str, joint: str, cylinder) -> tuple[float, float]:
     """Joint range (rad) over the cylinder's stroke; ValueError if the linkage does not assemble,

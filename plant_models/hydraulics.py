@@ -59,7 +59,8 @@ import numpy as np
 from plant_models import presets
 from plant_models.cylinder_model import CylinderModel
 from plant_models.geometry import ExcavatorGeometry, arm_points
-from plant_models.linkage import JOINT_NAMES, moment_arm_m, stroke_from_joint_angle
+from plant_models.joint_strokes import moment_arm_m, stroke_from_joint_angle
+from plant_models.linkage import JOINT_NAMES
 from plant_models.model_spec import FmuSpec
 from plant_models.sim_config import SimulatedExcavatorConfig
 

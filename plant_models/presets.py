@@ -16,7 +16,7 @@ paper
     The paper gives no machine data, so the stick and its range were chosen for the paper's
     scenario (section 3.2: the reach limit after about ten periods of digging straight down at
     y = -9 m, then a shift toward the machine): the planned spline at y = -9 m leaves the stick's
-    outer stop from z_D = -2.30 m (orchestrator.period_plan; the via-points alone from -2.94 m),
+    outer stop from z_D = -2.30 m (planner.period_plan; the via-points alone from -2.94 m),
     which the calibrated paper scenario reaches after period 8; the inner stop leaves room for
     the scenario's shift. With the standard 2.9 m stick the limit is at z_D = -1.36 m (reached in
     period 6).

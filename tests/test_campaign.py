@@ -11,8 +11,8 @@ import pytest
 from kinematic_plant import KinematicPlant
 from scipy.interpolate import BSpline, PPoly
 
-from orchestrator import campaign
-from orchestrator.campaign import run_campaign, sample_reference
+from orchestrator.campaign import loop as campaign
+from orchestrator.campaign.loop import run_campaign, sample_reference
 from orchestrator.scenario import load_scenario, scenario_from_dict
 from planner.digging_path import joint_via_points
 from planner.trajectory import plan_trajectory

@@ -10,16 +10,16 @@ import pytest
 from kinematic_plant import KinematicPlant
 from typer.testing import CliRunner
 
-from orchestrator import campaign
-from orchestrator.cli import app
-from orchestrator.run_log_read import read_run
+from orchestrator.campaign import loop as campaign
+from orchestrator.cli.app import app
+from orchestrator.runlog import read_run
 
 ROOT = Path(__file__).resolve().parent.parent
 PAPER = ROOT / "scenarios" / "paper-2020.toml"
 
 
 def _excosim(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    command = [sys.executable, "-c", "from orchestrator.cli import main; main()", *args]
+    command = [sys.executable, "-c", "from orchestrator.cli.app import main; main()", *args]
     env = {**os.environ, "PYTHONPATH": str(ROOT), "COLUMNS": "100"}
     return subprocess.run(command, capture_output=True, text=True, cwd=cwd, env=env, timeout=120)
 

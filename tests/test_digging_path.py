@@ -109,7 +109,7 @@ def test_digging_straight_down_at_y_minus_9_reaches_the_workspace_limit():
     """Paper section 3.2: after about ten periods at y = -9 m the path leaves the workspace."""
     geometry, shape = presets.get("paper"), PathShape.preset("paper")
     assert path_is_reachable(geometry, shape, -9.0, -0.1)
-    # The via-points alone (the spline leaves the stick's range earlier, orchestrator.period_plan).
+    # The via-points alone (the spline leaves the stick's range earlier, planner.period_plan).
     z_limit, result = first_unreachable_depth("paper", -9.0, -0.1, -3.5, 0.01)
     assert z_limit is not None and -3.0 < z_limit < -1.3
     assert result.reason.startswith("deepest via-point: stick angle")

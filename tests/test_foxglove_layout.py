@@ -30,7 +30,7 @@ from mcap_protobuf.decoder import DecoderFactory
 from scipy.spatial.transform import Rotation
 
 from orchestrator.campaign import run_campaign
-from orchestrator.review import WITHIN_KG
+from orchestrator.review.summary import WITHIN_KG
 from orchestrator.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -128,7 +128,7 @@ def run_log(tmp_path_factory) -> RunLogFacts:
             children |= {transform.child_frame_id for transform in tf.transforms}
             points += list(_frame_origins(tf.transforms).values())
         for _, _, _, profile in reader.iter_decoded_messages(topics=["/pile/profile"]):
-            # world x = -y_machine (orchestrator.run_log_scene)
+            # world x = -y_machine (orchestrator.runlog.scene)
             points += [[-y, 0.0, z] for y, z in zip(profile.y_m, profile.z_m, strict=True)]
     fields = {topic: (_json_resolver(schema, periods) if schema.encoding == "jsonschema"
                       else _protobuf_resolver(schema))

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import fmus
-from orchestrator.master import Master
+from orchestrator.plants.master import Master
 from plant_models.model_spec import FmuSpec
 
 STEP = 0.005

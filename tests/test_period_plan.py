@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from scipy.interpolate import BSpline
 
-from orchestrator.period_plan import PeriodPlanner, joint_ranges
 from planner.digging_path import PathShape, joint_via_points
+from planner.period_plan import PeriodPlanner, joint_ranges
 from planner.trajectory import plan_trajectory
 from plant_models import presets
 from plant_models.geometry import Unreachable

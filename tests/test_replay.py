@@ -16,12 +16,11 @@ import pytest
 from run_log_files import chunks, cut_inside_chunk
 
 import fmus
-from orchestrator import campaign
+from orchestrator.campaign import loop as campaign
 from orchestrator.campaign import run_campaign
-from orchestrator.replay import ReplayRefused, ReplayReport, compare_periods, replay_run
-from orchestrator.replay_command import replay
-from orchestrator.run_log import RunLog
-from orchestrator.run_log_read import read_run
+from orchestrator.cli.replay import replay
+from orchestrator.review.replay import ReplayRefused, ReplayReport, compare_periods, replay_run
+from orchestrator.runlog import RunLog, read_run
 from orchestrator.scenario import load_scenario, scenario_from_dict
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -297,7 +296,7 @@ def test_replay_command_refuses_a_scenario_this_version_does_not_accept(tmp_path
 def test_the_command_line_replays_and_refuses(paper_run, annotated_run):
     from typer.testing import CliRunner
 
-    from orchestrator.cli import app
+    from orchestrator.cli.app import app
 
     runner = CliRunner()
     done = runner.invoke(app, ["replay", str(paper_run[0])])

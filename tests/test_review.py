@@ -15,10 +15,10 @@ from run_log_files import cut_inside_chunk
 from typer.testing import CliRunner
 
 from orchestrator.campaign import run_campaign
-from orchestrator.cli import app
-from orchestrator.review import run_figures
-from orchestrator.review_plots import PLOT_TOPICS, pile_profile_periods, tip_path_periods
-from orchestrator.run_log_read import read_run
+from orchestrator.cli.app import app
+from orchestrator.review.plots import PLOT_TOPICS, pile_profile_periods, tip_path_periods
+from orchestrator.review.summary import run_figures
+from orchestrator.runlog import read_run
 from orchestrator.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -1,4 +1,4 @@
-"""The MCAP run log (orchestrator.run_log, run_log_read), checked with independent readers.
+"""The MCAP run log (orchestrator.runlog.writer, run_log_read), checked with independent readers.
 
 Files are read back with the `mcap` package's own readers and decoded with
 mcap-protobuf-support from the schemas stored in the file (not with the writer's code); the arm
@@ -31,10 +31,9 @@ from mcap_protobuf.decoder import DecoderFactory
 from run_log_files import chunks, cut_inside_chunk
 from scipy.spatial.transform import Rotation
 
-from orchestrator.run_log import RunLog
-from orchestrator.run_log_read import RunLogError, read_run
-from orchestrator.run_log_scene import FRAMES
-from orchestrator.run_log_wire import varint, varint_digits
+from orchestrator.runlog import RunLog, RunLogError, read_run
+from orchestrator.runlog.scene import FRAMES
+from orchestrator.runlog.wire import varint, varint_digits
 from plant_models import presets
 from plant_models.geometry import forward_kinematics
 from plant_models.plant import JOINTS, PeriodMeasurement
@@ -276,7 +275,7 @@ _WRITER = textwrap.dedent("""
     import numpy as np
     from plant_models import presets
     from plant_models.plant import PeriodMeasurement
-    from orchestrator.run_log import RunLog
+    from orchestrator.runlog import RunLog
     path, arrays, records, fmu = sys.argv[1:]
     data = np.load(arrays)
     log = RunLog(path, scenario={}, scenario_text="", scenario_name="killed", fmus={"f": fmu},

@@ -7,8 +7,8 @@ from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from orchestrator.run_log_decode import DecodeError, decode, numeric_schema
-from orchestrator.run_log_schemas import DoubleMessage, file_descriptor_set
+from orchestrator.runlog.decode import DecodeError, decode, numeric_schema
+from orchestrator.runlog.schemas import DoubleMessage, file_descriptor_set
 
 SAMPLE = DoubleMessage("TestSample", ("t_s", "a", "b"), repeated=("values",))
 SCHEMA_DATA = file_descriptor_set(SAMPLE)

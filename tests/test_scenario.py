@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 import fmus
-from orchestrator.overrides import parse_override
 from orchestrator.scenario import ScenarioError, load_scenario, scenario_from_dict
+from orchestrator.scenario.overrides import parse_override
 from planner.adaptation import AdaptationDefaults
 from planner.digging_path import LAB_DEEPEST_POINT_M, PathShape
 from planner.fuzzy import FuzzyRule
@@ -224,6 +224,6 @@ def test_every_shipped_scenario_loads():
 def test_the_override_example_holds():
     import doctest
 
-    import orchestrator.overrides
+    import orchestrator.scenario.overrides
 
-    assert doctest.testmod(orchestrator.overrides).failed == 0
+    assert doctest.testmod(orchestrator.scenario.overrides).failed == 0

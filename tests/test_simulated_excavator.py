@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from orchestrator.arm_coupling import ArmCoupling
-from orchestrator.simulated_excavator import SimulatedExcavator
+from orchestrator.plants.arm_coupling import ArmCoupling
+from orchestrator.plants.simulated_excavator import SimulatedExcavator
 from planner.digging_path import (
     LAB_DEEPEST_POINT_M,
     PAPER_DEEPEST_POINT_M,
@@ -20,7 +20,8 @@ from planner.trajectory import plan_trajectory
 from plant_models import presets
 from plant_models.geometry import forward_kinematics, gravity_joint_torques
 from plant_models.hydraulics import DESIGN_POSE_RAD, default_config
-from plant_models.linkage import JOINT_NAMES, joint_angle_from_stroke, moment_arm_m
+from plant_models.joint_strokes import joint_angle_from_stroke, moment_arm_m
+from plant_models.linkage import JOINT_NAMES
 from plant_models.plant import JointReference, Plant
 
 PAPER = presets.get("paper")

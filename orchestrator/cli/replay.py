@@ -1,5 +1,5 @@
 """`excosim replay RUN.mcap [--trust] [--json]`: re-run a logged campaign from the scenario and
-FMUs in its file and check that every period repeats (orchestrator.replay).
+FMUs in its file and check that every period repeats (orchestrator.review.replay).
 
 Exit status (set by the caller from the returned failure): 0 when the replay matches the log;
 1 when it differs (or our FMUs cannot be built to check the file's against); 2 when the file
@@ -19,15 +19,15 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from orchestrator.replay import ReplayReport
+from orchestrator.review.replay import ReplayReport
 
 
 def replay(path: Path, trust: bool, as_json: bool) -> tuple[str, int] | None:
     """Replay the run at `path`; None when it matches, else (one-line message, exit status).
     Prints a table per period and a summary line, or with `as_json` one JSON object."""
     import fmus
-    from orchestrator.replay import ReplayRefused, replay_run
-    from orchestrator.run_log_read import RunLogError
+    from orchestrator.review.replay import ReplayRefused, replay_run
+    from orchestrator.runlog import RunLogError
     from orchestrator.scenario import ScenarioError
 
     err = Console(stderr=True, highlight=False)

@@ -2,7 +2,7 @@
 
 Our models (`fmus.MODELS`) are named by name and built on demand; anything else is a path to an
 FMI 2.0 co-simulation .fmu, relative to the scenario's folder, stored resolved (absolute). The
-checks are the co-simulation master's own (`orchestrator.master.check_component`), run before
+checks are the co-simulation master's own (`orchestrator.plants.master.check_component`), run before
 any FMU is instantiated, so that a mistake is reported against the scenario field it is in;
 on top, each start value must fit its variable's type (the master would convert it).
 """
@@ -15,7 +15,8 @@ import re
 from pathlib import Path
 from typing import Any
 
-from orchestrator.master import check_component, fmu_path
+from orchestrator.plants.master import check_component, fmu_path
+from orchestrator.scenario.errors import ScenarioError
 from plant_models.model_spec import FmuSpec
 
 _ROLE_OF = {"boom": "cylinder", "stick": "cylinder", "bucket": "cylinder", "pile": "pile"}
@@ -26,7 +27,6 @@ def resolve_fmus(plant: dict[str, Any], source: str, base_dir: Path) -> dict[str
     """A copy of the resolved [plant] table with every `fmu` found; ScenarioError names the
     first wrong file, parameter or port."""
     import fmus
-    from orchestrator.scenario import ScenarioError
 
     plant = copy.deepcopy(plant)
     for component, role in _ROLE_OF.items():
@@ -72,7 +72,6 @@ def _without_component(error: ValueError, component: str) -> str:
 
 
 def _check_type(variable, model: str, value: Any, source: str, field: str) -> None:
-    from orchestrator.scenario import ScenarioError
 
     number = isinstance(value, int | float) and not isinstance(value, bool)
     fits = {"Real": number and math.isfinite(value),

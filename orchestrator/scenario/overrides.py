@@ -16,6 +16,8 @@ import tomllib
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from orchestrator.scenario.errors import ScenarioError
+
 _KEY_PART = re.compile(r"[A-Za-z0-9_-]+")
 
 
@@ -44,7 +46,6 @@ def apply_overrides(data: Mapping[str, Any], items: Sequence[str], source: str) 
     Raises ValueError (a ScenarioError naming `source` when it is available) for a malformed item
     or a key that runs through a value that is not a table.
     """
-    from orchestrator.scenario import ScenarioError
 
     result = copy.deepcopy(dict(data))
     for item in items:

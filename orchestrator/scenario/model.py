@@ -28,9 +28,10 @@ from typing import Any
 import numpy as np
 from pydantic import Field, PrivateAttr, StrictInt, StrictStr, ValidationError
 
-from orchestrator.overrides import apply_overrides
-from orchestrator.period_plan import PeriodPlanner
-from orchestrator.scenario_sections import (
+from orchestrator.scenario.errors import ScenarioError
+from orchestrator.scenario.fmu_paths import resolve_fmus
+from orchestrator.scenario.overrides import apply_overrides
+from orchestrator.scenario.sections import (
     AdaptationSection,
     LimitsSection,
     MachineSection,
@@ -39,23 +40,16 @@ from orchestrator.scenario_sections import (
     Section,
     TrajectorySection,
 )
-from orchestrator.scenario_types import Number, first_error
+from orchestrator.scenario.values import Number, first_error
 from planner.adaptation import AdaptationDefaults, initial_state
 from planner.digging_path import PathShape
 from planner.fuzzy import PAPER_CENTRE_FRACTIONS, PAPER_OUTPUTS_M, FuzzyRule
+from planner.period_plan import PeriodPlanner
 from plant_models import presets
 from plant_models.geometry import ExcavatorGeometry, Unreachable
 from plant_models.model_spec import FmuSpec
 
 PLANT_ROLES = ("boom", "stick", "bucket", "pile")
-
-
-class ScenarioError(ValueError):
-    """A mistake in a scenario; str() is one line: `<source>: <field>: <reason>`."""
-
-    def __init__(self, source: str, field: str, reason: str) -> None:
-        self.source, self.field, self.reason = source, field, reason
-        super().__init__(f"{source}: {field}: {reason}" if field else f"{source}: {reason}")
 
 
 class Scenario(Section):
@@ -99,7 +93,7 @@ class Scenario(Section):
 
     def period_planner(self) -> PeriodPlanner:
         """Plans (and checks the reach of) the period through a D for this machine, path,
-        limits and weights (orchestrator.period_plan)."""
+        limits and weights (planner.period_plan)."""
         return PeriodPlanner(self.geometry(), self.path_shape(), self.limits_rad(),
                              self.trajectory.k_T, self.trajectory.k_J)
 
@@ -226,8 +220,6 @@ def scenario_from_dict(data: Mapping[str, Any], *, source: str = "scenario",
         adaptation["centre_fractions"] = list(PAPER_CENTRE_FRACTIONS)
     scenario = _validate(merged, source)
     if check_fmus:
-        from orchestrator.scenario_fmus import resolve_fmus
-
         resolved = resolve_fmus(scenario.to_dict()["plant"], source,
                                 Path(base_dir) if base_dir is not None else Path.cwd())
         scenario = _validate({**scenario.to_dict(), "plant": resolved}, source)

@@ -1,4 +1,4 @@
-"""Read an excosim run log (`orchestrator.run_log`): the period records, metadata, attachments
+"""Read an excosim run log (`orchestrator.runlog.writer`): the period records, metadata, attachments
 and whether the run finished.
 
 The file is read record by record from the start, so a run that was killed (no summary, maybe
@@ -24,9 +24,9 @@ from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.records import Attachment, Channel, Metadata, Schema
 
-from orchestrator.run_log_decode import DecodeError, decode, numeric_schema
-from orchestrator.run_log_mcap import MAGIC
-from orchestrator.run_log_metadata import FORMAT
+from orchestrator.runlog.decode import DecodeError, decode, numeric_schema
+from orchestrator.runlog.mcap_records import MAGIC
+from orchestrator.runlog.metadata import FORMAT
 
 _RECORD_PREFIX = struct.Struct("<BQ")
 _CHUNK_HEAD = struct.Struct("<QQQII")  # start, end, uncompressed size, crc, compression length

@@ -15,9 +15,9 @@ from rich import box
 from rich.console import Console
 from rich.table import Table
 
-from orchestrator import review
-from orchestrator.run_command import period_table
-from orchestrator.run_log_read import RunLogError
+from orchestrator.cli.run import period_table
+from orchestrator.review import summary as review
+from orchestrator.runlog import RunLogError
 
 
 def _console() -> Console:
@@ -29,7 +29,7 @@ def review_run(path: Path, as_json: bool, plots: Path | None,
                period: int) -> tuple[str, int] | None:
     """Print the summary and period table of the run log at `path` (or one JSON object);
     with `plots`, write the figures there for period `period`."""
-    from orchestrator.review_plots import PLOT_TOPICS, write_plots
+    from orchestrator.review.plots import PLOT_TOPICS, write_plots
 
     try:
         run = review.load(path, PLOT_TOPICS if plots is not None else ())
@@ -96,7 +96,7 @@ def compare_runs(paths: list[Path], as_json: bool,
     else:
         _console().print(_compare_table(labels, summaries))
     if plots is not None:
-        from orchestrator.review_plots import plot_error_overlay, save_figure
+        from orchestrator.review.plots import plot_error_overlay, save_figure
 
         try:
             Path(plots).mkdir(parents=True, exist_ok=True)

@@ -1,4 +1,4 @@
-"""Compare the period records of a logged run with those of its replay (orchestrator.replay).
+"""Compare the period records of a logged run with those of its replay (orchestrator.review.replay).
 
 Each period is compared on what the campaign decides and measures: the weighed mass (kg), the
 deepest point D = (y, z) (m) the period dug through and its trajectory's duration (s).

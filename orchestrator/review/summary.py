@@ -2,7 +2,7 @@
 prints (and gives as JSON) and the per-run figures `excosim compare` sets side by side.
 
 A reviewer may hold only the MCAP file: no scenario file, no FMUs. Everything here comes from
-the file's metadata and /period records (`orchestrator.run_log_read`).
+the file's metadata and /period records (`orchestrator.runlog.reader`).
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from orchestrator.run_log_read import RunFile, read_run
+from orchestrator.runlog import RunFile, read_run
 
 WITHIN_KG = 3.0  # the band the paper's Figure 9 holds after period 1 (section 3.2), at m* = 30 kg
 BAND_FRACTION = WITHIN_KG / 30.0  # the same band for any target: 10 % of m*

@@ -8,7 +8,7 @@ For k = 1..periods (paper section 2.3, Fig. 5, Fig. 4's loop):
 2. the path's joint via-points around D (planner.digging_path) are timed by the time-jerk
    optimal B-spline (planner.trajectory) under the scenario's limits and weights; a D whose
    via-points or spline leave the arm's joint ranges is out of reach for the adaptation
-   (orchestrator.period_plan);
+   (planner.period_plan);
 3. the spline, sampled on the plant's communication grid, goes to the plant, which tracks it,
    weighs the bucket and empties it;
 4. the period's record goes to the run log (MCAP) before period k+1 starts.
@@ -27,15 +27,15 @@ from typing import Any
 
 import numpy as np
 
-from orchestrator.period_record import period_record, records_dataframe
-from orchestrator.scenario import Scenario, load_scenario
+from orchestrator.campaign.record import period_record, records_dataframe
+from orchestrator.scenario.model import Scenario, load_scenario
 from planner.adaptation import Decision, initial_state, next_deepest_point
 from planner.trajectory import JointTrajectory
 from plant_models.geometry import Unreachable
 from plant_models.plant import JointReference, Plant
 
 # End message of a campaign stopped from outside (Ctrl-C, SystemExit): its ending says nothing
-# about the campaign (orchestrator.replay does not compare it).
+# about the campaign (orchestrator.review.replay does not compare it).
 INTERRUPTED = "interrupted"
 
 
@@ -43,7 +43,7 @@ INTERRUPTED = "interrupted"
 class CampaignResult:
     """What a campaign did.
 
-    records: one plain dict per dug period (keys: orchestrator.period_record.period_record).
+    records: one plain dict per dug period (keys: orchestrator.campaign.record.period_record).
     termination: "periods" (all periods dug), "workspace_limit" (the adaptation ran out of
         workspace: normal) or "error" (a runtime failure; `message` says what, `error` holds it).
     """
@@ -67,7 +67,7 @@ class CampaignResult:
 
 def build_plant(scenario: Scenario) -> Plant:
     """The plant a scenario names (plant.kind "sim": the FMU-based simulated excavator)."""
-    from orchestrator.simulated_excavator import SimulatedExcavator
+    from orchestrator.plants.simulated_excavator import SimulatedExcavator
     from plant_models.hydraulics import default_config
 
     config = default_config(scenario.machine.preset)
@@ -79,9 +79,9 @@ def build_plant(scenario: Scenario) -> Plant:
 
 
 def open_run_log(scenario: Scenario, log_path: str | Path):
-    """The MCAP run log of a campaign (orchestrator.run_log.RunLog)."""
-    from orchestrator.master import fmu_path
-    from orchestrator.run_log import RunLog
+    """The MCAP run log of a campaign (orchestrator.runlog.writer.RunLog)."""
+    from orchestrator.plants.master import fmu_path
+    from orchestrator.runlog.writer import RunLog
 
     fmus = {role: fmu_path(spec, role) for role, spec in scenario.fmu_specs().items()}
     return RunLog(Path(log_path), scenario=scenario.to_dict(),

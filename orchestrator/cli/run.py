@@ -18,7 +18,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from orchestrator.review import band_kg
+from orchestrator.review.summary import band_kg
 
 
 def default_output(scenario_name: str, now: datetime | None = None) -> Path:
@@ -83,7 +83,7 @@ def _check_output(path: Path) -> str | None:
 
 def period_table(records: list[dict[str, Any]], target_mass_kg: float) -> Table:
     """A rich table, one row per period: k, D, mass, error (green within the on-target band,
-    `orchestrator.review.band_kg`), reset, duration, peak jerk, planner."""
+    `orchestrator.review.summary.band_kg`), reset, duration, peak jerk, planner."""
     band = band_kg(target_mass_kg)
     table = Table(title=f"Digging periods (target {target_mass_kg:g} kg)", box=box.SIMPLE_HEAD,
                   caption="duration: of the planned trajectory; peak jerk: largest |jerk| of "

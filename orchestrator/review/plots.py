@@ -12,11 +12,11 @@ from typing import Any
 
 import numpy as np
 
-from orchestrator.review import band_kg, target_mass_kg
-from orchestrator.run_log_read import RunFile
+from orchestrator.review.summary import band_kg, target_mass_kg
+from orchestrator.runlog import RunFile
 from plant_models.plant import JOINTS
 
-# Topics the figures read (`orchestrator.review.load(path, topics=PLOT_TOPICS)`).
+# Topics the figures read (`orchestrator.review.summary.load(path, topics=PLOT_TOPICS)`).
 PLOT_TOPICS = ("/joints", *(f"/cylinder/{joint}" for joint in JOINTS), "/pile/bucket",
                "/pile/profile")
 PAPER_TIP_PATH_PERIODS = (1, 3, 5, 7, 11, 13, 15, 17)  # the periods of the paper's Figure 10

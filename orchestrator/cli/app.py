@@ -79,7 +79,7 @@ def run(
     ] = None,
 ) -> None:
     """Run a digging campaign: plan, dig and weigh period after period; log it to MCAP."""
-    from orchestrator import run_command
+    from orchestrator.cli import run as run_command
 
     items = [*(overrides or []), *([f"periods={periods}"] if periods is not None else [])]
     failure = run_command.run(scenario, output, items)
@@ -102,7 +102,7 @@ def review(
     ] = 1,
 ) -> None:
     """Summarise a run from its log alone: scenario, how it ended, one row per period."""
-    from orchestrator.review_command import review_run
+    from orchestrator.cli.review import review_run
 
     failure = review_run(run_log, as_json, plots, period)
     if failure is not None:
@@ -118,7 +118,7 @@ def compare(
     ] = None,
 ) -> None:
     """Set runs side by side: errors, periods on target, durations, jerk, resets."""
-    from orchestrator.review_command import compare_runs
+    from orchestrator.cli.review import compare_runs
 
     failure = compare_runs(run_logs, as_json, plots)
     if failure is not None:
@@ -135,7 +135,7 @@ def replay(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
     """Re-run a campaign from the scenario and FMUs in its log; check every period matches."""
-    from orchestrator.replay_command import replay as replay_log
+    from orchestrator.cli.replay import replay as replay_log
 
     failure = replay_log(run_log, trust, as_json)
     if failure is not None:

@@ -2,10 +2,10 @@
 
 Every period goes into the file as one chunk, written and flushed to the operating system
 before `log_period` returns, so a run that is killed leaves every finished period readable
-(`orchestrator.run_log_read.read_run`). Log time is campaign time: ns since the start of
+(`orchestrator.runlog.reader.read_run`). Log time is campaign time: ns since the start of
 period 1 (t0 of a period + the plant's sample time).
 
-Channels (schemas in `orchestrator.run_log_schemas`, frames in `orchestrator.run_log_scene`):
+Channels (schemas in `orchestrator.runlog.schemas`, frames in `orchestrator.runlog.scene`):
 
 =================== ========================= =================================================
 topic               schema (encoding)         one message per
@@ -44,10 +44,10 @@ from pathlib import Path
 import numpy as np
 from foxglove.messages import FrameTransforms, SceneUpdate
 
-from orchestrator import run_log_scene as scene
-from orchestrator.run_log_chunk import ChunkBuilder, DoubleBatch
-from orchestrator.run_log_mcap import McapChunkWriter
-from orchestrator.run_log_metadata import (
+from orchestrator.runlog import scene
+from orchestrator.runlog.chunk import ChunkBuilder, DoubleBatch
+from orchestrator.runlog.mcap_records import McapChunkWriter
+from orchestrator.runlog.metadata import (
     FORMAT,
     FORMAT_VERSION,
     package_versions,
@@ -55,8 +55,8 @@ from orchestrator.run_log_metadata import (
     to_json,
     write_run_description,
 )
-from orchestrator.run_log_samples import checked, profile_message, sample_channels
-from orchestrator.run_log_schemas import (
+from orchestrator.runlog.samples import checked, profile_message, sample_channels
+from orchestrator.runlog.schemas import (
     PERIOD_SUMMARY_SCHEMA,
     PILE_PROFILE,
     DoubleMessage,

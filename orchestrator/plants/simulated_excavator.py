@@ -4,7 +4,7 @@ protocol (plant_models.plant), one instance each for the whole run (the ground h
 One communication step h from t_k (the reference is interpolated onto the grid t_k = k h):
 
 1. strokes (cylinder outputs at t_k) -> joint angles, moment arms, tip and bucket angle
-   (orchestrator.arm_coupling);
+   (orchestrator.plants.arm_coupling);
 2. the Pile steps with the tip at t_k: it cuts along the tip's path since the last step and
    returns the bucket's content and the soil force;
 3. cylinder loads from gravity (links and payload) and the soil force; each servo
@@ -30,8 +30,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from orchestrator.arm_coupling import ArmCoupling
-from orchestrator.master import Master, check_component, fmu_path
+from orchestrator.plants.arm_coupling import ArmCoupling
+from orchestrator.plants.master import Master, check_component, fmu_path
 from plant_models.cylinder_model import CylinderModel
 from plant_models.linkage import JOINT_NAMES
 from plant_models.model_spec import CYLINDER_OUTPUTS, PILE_OUTPUTS

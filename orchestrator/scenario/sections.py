@@ -1,5 +1,5 @@
 """The tables of a scenario file, as pydantic models (extra keys forbidden, values in file
-units: m, deg, deg/s, kg, s). orchestrator.scenario assembles them into a Scenario."""
+units: m, deg, deg/s, kg, s). orchestrator.scenario.model assembles them into a Scenario."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 
 from pydantic import BaseModel, ConfigDict, Field, StrictStr, field_validator, model_validator
 
-from orchestrator.scenario_types import Number, ParameterValue, numbers
+from orchestrator.scenario.values import Number, ParameterValue, numbers
 from planner.digging_path import PathShape
 from plant_models import presets
 from plant_models.model_spec import FmuSpec

@@ -1,7 +1,7 @@
 """Decode the numeric channels of a run log into numpy arrays, from the schemas stored in the file.
 
 A reviewer may hold only the file, so field names and numbers come from each channel's protobuf
-schema (a FileDescriptorSet), not from this version's `orchestrator.run_log_schemas`. Only
+schema (a FileDescriptorSet), not from this version's `orchestrator.runlog.schemas`. Only
 double fields are decoded (the run log's high-rate messages hold nothing else); a message of
 another kind (e.g. foxglove.SceneUpdate) is not a numeric channel.
 

@@ -1,5 +1,5 @@
 """A period's measurement as run-log content: checked arrays, the high-rate channels with their
-protobuf field layout, and the pile profile message (`orchestrator.run_log_schemas`)."""
+protobuf field layout, and the pile profile message (`orchestrator.runlog.schemas`)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from orchestrator.run_log_schemas import (
+from orchestrator.runlog.schemas import (
     CYLINDER_STATE,
     JOINT_STATE,
     PILE_BUCKET_STATE,
@@ -17,7 +17,7 @@ from orchestrator.run_log_schemas import (
     DoubleMessage,
     cylinder_signals,
 )
-from orchestrator.run_log_wire import varint
+from orchestrator.runlog.wire import varint
 from plant_models.plant import JOINTS, PeriodMeasurement
 
 

@@ -4,7 +4,8 @@ of the per-period summary.
 The protobuf messages are proto2 with explicit presence: a field the plant did not measure is
 absent from the message (not a misleading 0). Every high-rate message is a flat list of doubles
 (field 1 is always `t_s`, campaign time in s), so the writer can encode a whole period at once
-with numpy (`orchestrator.run_log_mcap`). Field numbers never change; new fields get new numbers.
+with numpy (`orchestrator.runlog.mcap_records`). Field numbers never change; new fields get new
+numbers.
 Names carry their SI unit (`_m`, `_m_s`, `_Pa`, `_N`, `_kg`, `_rad`, `_m3`).
 
 Signal names come from `plant_models.plant.PeriodMeasurement.signals` ("<component>.<variable>")

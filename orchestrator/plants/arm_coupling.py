@@ -3,7 +3,7 @@
 Per communication step, with scalar math only (this runs once per step in the master loop):
 
 - stroke -> joint angle and moment arm r = d(stroke)/d(angle) per joint, interpolated in
-  tables of `plant_models.linkage` (joint_angle_from_stroke, moment_arm_m) on
+  tables of `plant_models.joint_strokes` (joint_angle_from_stroke, moment_arm_m) on
   TABLE_INTERVALS + 1 uniform strokes: cubic Hermite for the angle (slopes 1/r), linear for the
   arm (errors below 1e-9 rad and 1e-6 relative, tested);
 - forward kinematics: bucket tip (y, z) and absolute bucket angle (plant_models.geometry);
@@ -23,7 +23,8 @@ import math
 import numpy as np
 
 from plant_models.geometry import GRAVITY_M_S2, ExcavatorGeometry
-from plant_models.linkage import JOINT_NAMES, joint_angle_from_stroke, moment_arm_m
+from plant_models.joint_strokes import joint_angle_from_stroke, moment_arm_m
+from plant_models.linkage import JOINT_NAMES
 
 TABLE_INTERVALS = 4096
 _RANGE_TOLERANCE = 1e-9  # rad of round-off allowed at a joint limit

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from orchestrator.run_log_mcap import McapChunkWriter
-from orchestrator.run_log_scene import FRAMES_DOC
+from orchestrator.runlog.mcap_records import McapChunkWriter
+from orchestrator.runlog.scene import FRAMES_DOC
 from plant_models.geometry import ExcavatorGeometry
 
 FORMAT = "excosim-run-log"
@@ -85,7 +85,7 @@ def write_run_description(writer: McapChunkWriter, *, scenario_json: str, scenar
                           scenario_name: str, fmus: dict[str, tuple[str, bytes]],
                           plant_kind: str, target_mass_kg: float,
                           geometry: ExcavatorGeometry | None) -> None:
-    """The metadata records and attachments a run log starts with (`orchestrator.run_log`)."""
+    """The metadata records and attachments a run log starts with (`orchestrator.runlog.writer`)."""
     versions = package_versions()
     scenario_file, scenario_media = scenario_attachment(scenario_text)
     writer.add_metadata("excosim.run", {

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from mcap.opcode import Opcode
 
-from orchestrator.run_log_wire import interleave
+from orchestrator.runlog.wire import interleave
 
 MESSAGE_HEADER = struct.Struct("<BQHIQQ")
 MESSAGE_HEADER_FIELDS = (

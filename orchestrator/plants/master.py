@@ -13,7 +13,7 @@ FMU's own fmi2SetReal / fmi2DoStep / fmi2GetReal entry points with pre-converted
 A component's `inputs` buffer holds the role's inputs in role order (`input_index`), `outputs`
 the role's outputs in role order (`output_index`); the caller writes inputs, calls
 `step(t, h)` and reads outputs. The coupling itself (who feeds whom, in which order) belongs
-to the caller: for the excavator, orchestrator.simulated_excavator.
+to the caller: for the excavator, orchestrator.plants.simulated_excavator.
 """
 
 from __future__ import annotations

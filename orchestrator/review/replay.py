@@ -1,6 +1,6 @@
 """Replay a simulated run from its MCAP log alone and check that it repeats the log.
 
-A run log (`orchestrator.run_log`) holds the resolved scenario, the FMUs as attachments and
+A run log (`orchestrator.runlog.writer`) holds the resolved scenario, the FMUs as attachments and
 their sha256 in the metadata. A simulated run is deterministic: the same scenario (its noise
 seed included) and the same FMU bytes give the same numbers, so a replay of a faithful file
 repeats every period's weighed mass, deepest point D and trajectory duration exactly
@@ -27,8 +27,8 @@ from pathlib import Path, PurePosixPath
 from typing import Any
 
 from orchestrator.campaign import INTERRUPTED
-from orchestrator.replay_compare import TOLERANCE, PeriodComparison, compare_periods
-from orchestrator.run_log_read import RunFile, read_run
+from orchestrator.review.replay_compare import TOLERANCE, PeriodComparison, compare_periods
+from orchestrator.runlog import RunFile, read_run
 from orchestrator.scenario import PLANT_ROLES, ScenarioError
 
 __all__ = ["TOLERANCE", "FmuCheck", "PeriodComparison", "ReplayRefused", "ReplayReport",
@@ -56,10 +56,10 @@ class FmuCheck:
 class ReplayReport:
     """A replay compared with its log.
 
-    periods: one comparison per period k in either run (orchestrator.replay_compare).
+    periods: one comparison per period k in either run (orchestrator.review.replay_compare).
     fmus: component (boom, stick, bucket, pile) -> the FMU the replay ran.
     logged_termination: how the logged run ended (None: it was killed).
-    replayed_termination, replayed_message: how the replay ended (orchestrator.campaign).
+    replayed_termination, replayed_message: how the replay ended (orchestrator.campaign.loop).
     termination_compared: whether the two endings were compared (not for a killed or an
         interrupted run: its ending says nothing about the campaign).
     tolerance: the largest absolute difference taken as equal (kg, m, s).

@@ -33,7 +33,7 @@ from foxglove.messages import (
     Vector3,
 )
 
-from orchestrator.run_log_wire import doubles, field, rows, varint, varint_digits
+from orchestrator.runlog.wire import doubles, field, rows, varint, varint_digits
 from plant_models.geometry import ExcavatorGeometry
 
 WORLD = "world"
@@ -101,7 +101,7 @@ def encode_frame_transforms(transforms, log_time_ns: np.ndarray):
     `link_transforms` output and the samples' times (n,) ns (the transforms' timestamps).
 
     Returns groups [(sample indices, payloads (n_g, w_g) uint8)] of equal-size messages (sizes
-    differ only through the timestamp varints); `orchestrator.run_log_wire.interleave` joins
+    differ only through the timestamp varints); `orchestrator.runlog.wire.interleave` joins
     them. Explicit zeros are written (valid protobuf) so every other part has a fixed size.
     """
     ns = np.asarray(log_time_ns, dtype=np.uint64)

@@ -1,0 +1,1 @@
+"""Reading run logs back: the review summary and figures, compare, and replay."""

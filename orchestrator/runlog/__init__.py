@@ -1,0 +1,11 @@
+"""The MCAP run log: written as the run goes (`RunLog`), read back tolerantly (`read_run`).
+
+    from orchestrator.runlog import read_run
+    run = read_run("run.mcap", topics=("/joints",))
+    run.records, run.channels["/joints"].of_period(2)["measured_stick_rad"]
+"""
+
+from orchestrator.runlog.reader import RunFile, RunLogError, read_run
+from orchestrator.runlog.writer import RunLog
+
+__all__ = ["RunFile", "RunLog", "RunLogError", "read_run"]
