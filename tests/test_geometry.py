@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 import pytest
+from finite_differences import assert_derivative, central_difference
 from scipy.optimize import minimize
 
 from plant_models import presets
@@ -224,15 +225,12 @@ def test_law_of_cosines_angle_between_mount_vectors():
 def test_jacobian_matches_central_difference(geometry, joint):
     index = JOINT_NAMES.index(joint)
     cylinder = (geometry.boom_cylinder, geometry.stick_cylinder, geometry.bucket_linkage)[index]
-    step = 1e-6 * cylinder.stroke_m
     for stroke in np.linspace(0.05, 0.95, 10) * cylinder.stroke_m:
         angle = joint_angle_from_stroke(geometry, joint, stroke)
-        numeric = (
-            joint_angle_from_stroke(geometry, joint, stroke + step)
-            - joint_angle_from_stroke(geometry, joint, stroke - step)
-        ) / (2 * step)
+        numeric = central_difference(
+            lambda s: joint_angle_from_stroke(geometry, joint, float(s[0])), np.array([stroke]))
         analytic = joint_rate_per_stroke_rate(geometry, joint, angle)
-        assert analytic == pytest.approx(numeric, rel=1e-6)
+        assert_derivative(np.array([analytic]), numeric)
         assert moment_arm_m(geometry, joint, angle) * analytic == pytest.approx(1.0)
 
 
@@ -269,16 +267,10 @@ def test_gravity_torques_are_the_gradient_of_potential_energy(geometry):
         coms = (p["boom_com"], p["stick_com"], p["bucket_com"])
         return GRAVITY_M_S2 * sum(m * c[1] for m, c in zip(masses, coms, strict=True))
 
-    step = 1e-6
     for payload in (0.0, 5.0 * geometry.bucket_mass.mass_kg):
         for q in random_joints(geometry, 10, seed=5):
-            numeric = [
-                (potential(q + step * e, payload) - potential(q - step * e, payload)) / (2 * step)
-                for e in np.eye(3)
-            ]
-            torques = gravity_joint_torques(geometry, q, payload_kg=payload)
-            scale = np.max(np.abs(numeric))
-            np.testing.assert_allclose(torques, numeric, rtol=0, atol=1e-6 * scale)
+            numeric = central_difference(lambda joints: potential(joints, payload), q)
+            assert_derivative(gravity_joint_torques(geometry, q, payload_kg=payload), numeric)
 
 
 def test_a_horizontal_arm_needs_a_lifting_boom_torque():

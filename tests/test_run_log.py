@@ -1,4 +1,4 @@
-"""The MCAP run log (orchestrator.runlog.writer, run_log_read), checked with independent readers.
+"""The MCAP run log (orchestrator.runlog: writer and reader), checked with independent readers.
 
 Files are read back with the `mcap` package's own readers and decoded with
 mcap-protobuf-support from the schemas stored in the file (not with the writer's code); the arm

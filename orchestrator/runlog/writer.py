@@ -29,9 +29,9 @@ frames), `excosim.scenario` (the resolved scenario as JSON), `excosim.versions`,
 `excosim.end` (termination, message, periods): a file without it is a run that did not finish.
 Attachments: `scenario.toml` (the scenario file's text; `.json` or `.txt` if it is not TOML, see
 `excosim.run` "scenario_attachment") and `fmus/<file name>` (each distinct FMU once;
-`excosim.fmu_attachments` maps each FMU name to its attachment). Module map: run_log_metadata
-(these records), run_log_samples and run_log_scene (message content), run_log_chunk and
-run_log_mcap (the file format), run_log_read (reading it back).
+`excosim.fmu_attachments` maps each FMU name to its attachment). Module map: metadata
+(these records), samples and scene (message content), chunk and mcap_records (the file
+format), reader (reading it back).
 """
 
 from __future__ import annotations
