@@ -1,38 +1,60 @@
 # One-command set-up on a fresh Linux machine with Python 3.11+ and gcc.
+# Installs come from the lock (requirements/*.txt: exact versions with hashes, nothing else):
+# `make run` installs what running needs, `make test` and `make bench` add the test extra.
 PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
-STAMP := $(VENV)/.installed-stamp
+PIP := $(PY) -m pip install --quiet --no-deps --require-hashes
+RUN_STAMP := $(VENV)/.run-installed
+TEST_STAMP := $(VENV)/.test-installed
 # ecospy loads libtbb from the venv's lib folder; small dense algebra runs in loops: one BLAS thread.
 export LD_LIBRARY_PATH := $(abspath $(VENV))/lib:$(LD_LIBRARY_PATH)
 export OPENBLAS_NUM_THREADS := 1
 export OMP_NUM_THREADS := 1
 export MKL_NUM_THREADS := 1
 
-.PHONY: run test bench lint clean
+.PHONY: run test bench lint lock clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
 
-$(STAMP): pyproject.toml | $(PY)
-	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test]'
-	touch $(STAMP)
+# The project itself: editable, built with the locked setuptools (no build isolation, which would
+# fetch whatever setuptools is newest that day), with no dependency resolution of its own.
+$(RUN_STAMP): pyproject.toml requirements/run.txt | $(PY)
+	$(PIP) -r requirements/run.txt
+	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
+	$(PY) -m pip check
+	touch $@
 
-run: $(STAMP)
+$(TEST_STAMP): $(RUN_STAMP) requirements/test.txt
+	$(PIP) -r requirements/test.txt
+	$(PY) -m pip check
+	touch $@
+
+run: $(RUN_STAMP)
 	$(VENV)/bin/excosim fmus build
 	$(VENV)/bin/excosim run scenarios/paper-2020.toml
 
-test: $(STAMP)
+test: $(TEST_STAMP)
 	$(VENV)/bin/excosim fmus build
 	$(PY) -m pytest -q
 
-bench: $(STAMP)
+bench: $(TEST_STAMP)
 	$(VENV)/bin/excosim fmus build
 	@for b in bench/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
 
-lint: $(STAMP)
+lint: $(TEST_STAMP)
 	$(VENV)/bin/ruff check .
 
+# Refresh the lock to the newest versions that pyproject.toml's ranges allow (README: "The lock").
+UV_VERSION := 0.13.8
+lock:
+	$(PYTHON) -m venv .venv-lock
+	.venv-lock/bin/python -m pip install --quiet uv==$(UV_VERSION)
+	.venv-lock/bin/uv pip compile --quiet --upgrade --generate-hashes --extra test \
+	    pyproject.toml requirements/build.in -o requirements/test.txt
+	.venv-lock/bin/uv pip compile --quiet --upgrade --generate-hashes -c requirements/test.txt \
+	    pyproject.toml requirements/build.in -o requirements/run.txt
+
 clean:
-	rm -rf build dist *.egg-info .pytest_cache
+	rm -rf build dist *.egg-info .pytest_cache .venv-lock
