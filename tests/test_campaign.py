@@ -13,6 +13,7 @@ from scipy.interpolate import BSpline, PPoly
 
 from orchestrator.campaign import loop as campaign
 from orchestrator.campaign.loop import run_campaign, sample_reference
+from orchestrator.runlog import read_run
 from orchestrator.scenario import load_scenario, scenario_from_dict
 from planner.digging_path import joint_via_points
 from planner.trajectory import plan_trajectory
@@ -184,7 +185,7 @@ class RecordingLog:
 
 def test_a_runtime_failure_closes_plant_and_log_and_returns_an_error(paper, monkeypatch):
     log = RecordingLog()
-    monkeypatch.setattr(campaign, "open_run_log", lambda scenario, path: log)
+    monkeypatch.setattr(campaign, "open_run_log", lambda scenario, path, overwrite: log)
     plant = KinematicPlant(paper.geometry(), fail_in_period=3)
     result = run_campaign(paper, plant=plant, log_path="unused.mcap")
     assert result.termination == "error"
@@ -198,7 +199,7 @@ def test_a_runtime_failure_closes_plant_and_log_and_returns_an_error(paper, monk
 
 def test_a_normal_end_closes_the_log_with_its_termination(paper, monkeypatch):
     log = RecordingLog()
-    monkeypatch.setattr(campaign, "open_run_log", lambda scenario, path: log)
+    monkeypatch.setattr(campaign, "open_run_log", lambda scenario, path, overwrite: log)
     scenario = scenario_from_dict({**paper.to_dict(), "periods": 3})
     result = run_campaign(scenario, plant=KinematicPlant(scenario.geometry()), log_path="x.mcap")
     assert result.termination == "periods"
@@ -232,3 +233,18 @@ def test_sampling_reaches_the_end_of_the_trajectory():
     np.testing.assert_allclose(reference.velocity_rad_s[[0, -1]], 0.0, atol=1e-12)
     with pytest.raises(ValueError, match="communication step"):
         sample_reference(trajectory, 0.0)
+
+
+def test_an_existing_log_is_refused_before_anything_is_dug_unless_overwritten(paper, tmp_path):
+    scenario = scenario_from_dict({**paper.to_dict(), "periods": 1})
+    path = tmp_path / "run.mcap"
+    path.write_bytes(b"an earlier run")
+    plant = KinematicPlant(scenario.geometry())
+    with pytest.raises(FileExistsError, match="already exists"):
+        run_campaign(scenario, plant=plant, log_path=path)
+    assert path.read_bytes() == b"an earlier run"  # nothing already computed is lost
+    assert plant.closed == 1 and not plant.ground_m.any()  # closed, and it never dug
+    result = run_campaign(scenario, plant=KinematicPlant(scenario.geometry()), log_path=path,
+                          overwrite=True)
+    assert result.termination == "periods"
+    assert read_run(path).periods == result.records

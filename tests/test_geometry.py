@@ -269,7 +269,7 @@ def test_gravity_torques_are_the_gradient_of_potential_energy(geometry):
 
     for payload in (0.0, 5.0 * geometry.bucket_mass.mass_kg):
         for q in random_joints(geometry, 10, seed=5):
-            numeric = central_difference(lambda joints: potential(joints, payload), q)
+            numeric = central_difference(lambda joints, m=payload: potential(joints, m), q)
             assert_derivative(gravity_joint_torques(geometry, q, payload_kg=payload), numeric)
 
 

@@ -78,7 +78,7 @@ def build_plant(scenario: Scenario) -> Plant:
     return SimulatedExcavator(config)
 
 
-def open_run_log(scenario: Scenario, log_path: str | Path):
+def open_run_log(scenario: Scenario, log_path: str | Path, overwrite: bool = False):
     """The MCAP run log of a campaign (orchestrator.runlog.writer.RunLog)."""
     from orchestrator.plants.master import fmu_path
     from orchestrator.runlog.writer import RunLog
@@ -87,7 +87,8 @@ def open_run_log(scenario: Scenario, log_path: str | Path):
     return RunLog(Path(log_path), scenario=scenario.to_dict(),
                   scenario_text=scenario_source_text(scenario), scenario_name=scenario.name,
                   fmus=fmus, plant_kind=scenario.plant.kind,
-                  target_mass_kg=scenario.target_mass_kg, geometry=scenario.geometry())
+                  target_mass_kg=scenario.target_mass_kg, geometry=scenario.geometry(),
+                  overwrite=overwrite)
 
 
 def scenario_source_text(scenario: Scenario) -> str:
@@ -104,6 +105,7 @@ def run_campaign(
     log_path: str | Path | None = None,
     progress: Callable[[dict[str, Any]], None] | None = None,
     plant: Plant | None = None,
+    overwrite: bool = False,
 ) -> CampaignResult:
     """Dig `scenario.periods` periods (fewer if the workspace runs out) and report.
 
@@ -111,17 +113,23 @@ def run_campaign(
     log_path: where to write the run's MCAP log (None: no log).
     progress: called with each period's record once the period is done.
     plant: the plant to dig with instead of the scenario's own (it is closed at the end too).
-    Never raises for a runtime failure: the result's termination is "error" and the log is
-    closed with it. KeyboardInterrupt closes plant and log, then propagates.
+    overwrite: replace an existing file at log_path (default: refuse it).
+    A log that cannot be opened (FileExistsError for an existing file, OSError) raises before
+    anything is dug. After that it never raises for a runtime failure: the result's
+    termination is "error" and the log is closed with it. KeyboardInterrupt closes plant and
+    log, then propagates.
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     records: list[dict[str, Any]] = []
     termination, message, error = "periods", "", None
-    log = None
     try:
-        if log_path is not None:
-            log = open_run_log(scenario, log_path)
+        log = open_run_log(scenario, log_path, overwrite) if log_path is not None else None
+    except BaseException:
+        if plant is not None:
+            plant.close()
+        raise
+    try:
         if plant is None:
             plant = build_plant(scenario)
         termination, message = _dig(scenario, plant, log, records, progress)

@@ -2,7 +2,7 @@
 
     from orchestrator.runlog import read_run
     run = read_run("run.mcap", topics=("/joints",))
-    run.records, run.channels["/joints"].of_period(2)["measured_stick_rad"]
+    run.periods, run.channels["/joints"].of_period(2)["measured_stick_rad"]
 """
 
 from orchestrator.runlog.reader import RunFile, RunLogError, read_run
