@@ -13,6 +13,7 @@ from scipy.interpolate import BSpline, PPoly
 
 from orchestrator.campaign import loop as campaign
 from orchestrator.campaign.loop import run_campaign, sample_reference
+from orchestrator.campaign.record import joint_columns, reference_spline
 from orchestrator.runlog import read_run
 from orchestrator.scenario import load_scenario, scenario_from_dict
 from planner.digging_path import joint_via_points
@@ -97,15 +98,15 @@ def test_every_spline_keeps_the_limits_and_passes_its_via_points(dug):
     scenario, _, result, _ = dug
     limits = scenario.limits_rad()
     for record in result.records:
-        spline = BSpline(np.array(record["spline"]["knots_s"]),
-                         np.array(record["spline"]["coefficients_rad"]), record["spline"]["degree"])
+        spline = reference_spline(record)
         for order, key in enumerate(("max_abs_velocity_deg_s", "max_abs_acceleration_deg_s2",
                                      "max_abs_jerk_deg_s3")):
             peak = _exact_peak(spline, order + 1)
             assert np.all(peak <= limits[order] * (1 + 1e-9)), (record["k"], key)
             np.testing.assert_allclose(np.degrees(peak), record[key], rtol=1e-6, atol=1e-9)
         times = np.concatenate([[0.0], np.cumsum(record["segment_durations_s"])])
-        np.testing.assert_allclose(spline(times), record["via_points_rad"], atol=1e-9)
+        np.testing.assert_allclose(spline(times), joint_columns(record["via_points_rad"]),
+                                   atol=1e-9)
         assert record["duration_s"] == pytest.approx(times[-1], rel=1e-12)
         # At rest at both ends (paper section 3.1).
         for order in (1, 2, 3):
@@ -119,13 +120,13 @@ def test_the_plant_gets_the_planned_spline_on_its_grid(dug):
         step = plant.communication_step_s
         assert reference.t_s[1] - reference.t_s[0] == pytest.approx(step)
         assert reference.t_s[-1] >= record["duration_s"] > reference.t_s[-1] - step
-        spline = BSpline(np.array(record["spline"]["knots_s"]),
-                         np.array(record["spline"]["coefficients_rad"]), 5)
+        spline = reference_spline(record)
+        assert spline.k == 5
         inside = reference.t_s <= record["duration_s"]
         np.testing.assert_allclose(reference.position_rad[inside], spline(reference.t_s[inside]),
                                    atol=1e-12)
-        np.testing.assert_allclose(reference.position_rad[-1], record["via_points_rad"][-1],
-                                   atol=1e-12)
+        np.testing.assert_allclose(reference.position_rad[-1],
+                                   joint_columns(record["via_points_rad"])[-1], atol=1e-12)
 
 
 def test_the_campaign_reports_what_the_plant_weighed(dug):

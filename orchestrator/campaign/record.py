@@ -14,9 +14,14 @@ Keys (angles in the record's own units, per-joint lists in the order boom, stick
                                exact peaks of the planned spline per joint
     tracking_rms_deg           RMS of measured minus reference angle per joint (deg)
     planner_ms                 wall time of the trajectory optimisation (ms)
-    via_points_rad             (5, 3) joint via-points (rad)
+    via_points_rad             {joint: (5,)} joint via-points (rad)
     segment_durations_s        (4,) durations between via-points (s)
-    spline                     {"degree", "knots_s", "coefficients_rad"}: the planned reference
+    spline                     {"degree", "knots_s", "coefficients_rad": {joint: (n,)}}: the
+                               planned reference (`reference_spline(record)` rebuilds it)
+
+Per-joint arrays are objects of flat lists, not nested lists, so that every field has a JSON
+schema the viewers can parse (Foxglove's and Lichtblick's readers take arrays of scalars or of
+objects only). Records of logs written before that (nested lists) are read as well.
 """
 
 from __future__ import annotations
@@ -54,12 +59,35 @@ def period_record(state: AdaptationState, decision: Decision, trajectory: JointT
         "max_abs_jerk_deg_s3": _degrees(trajectory.peak_jerk),
         "tracking_rms_deg": _degrees(measurement.tracking_rms_rad),
         "planner_ms": trajectory.solve_time_ms,
-        "via_points_rad": np.asarray(trajectory.via_points).tolist(),
+        "via_points_rad": per_joint(trajectory.via_points),
         "segment_durations_s": np.asarray(trajectory.segment_durations).tolist(),
         "spline": {"degree": int(trajectory.spline.k),
                    "knots_s": np.asarray(trajectory.spline.t).tolist(),
-                   "coefficients_rad": np.asarray(trajectory.spline.c).tolist()},
+                   "coefficients_rad": per_joint(trajectory.spline.c)},
     }
+
+
+def per_joint(values) -> dict[str, list[float]]:
+    """(n, 3) values -> {"boom": [n], "stick": [n], "bucket": [n]}."""
+    columns = np.asarray(values, dtype=float).reshape(-1, len(JOINTS)).T
+    return {joint: column.tolist() for joint, column in zip(JOINTS, columns, strict=True)}
+
+
+def joint_columns(value) -> np.ndarray:
+    """(n, 3) array of a per-joint record field ({joint: [n]}, or a nested list (n, 3) as
+    older logs have it)."""
+    if isinstance(value, dict):
+        return np.stack([np.asarray(value[joint], dtype=float) for joint in JOINTS], axis=1)
+    return np.asarray(value, dtype=float)
+
+
+def reference_spline(record: dict[str, Any]):
+    """The planned reference of a period record as a scipy BSpline: q(t) (rad), t in s."""
+    from scipy.interpolate import BSpline
+
+    spline = record["spline"]
+    return BSpline(np.asarray(spline["knots_s"], dtype=float),
+                   joint_columns(spline["coefficients_rad"]), int(spline["degree"]))
 
 
 def _degrees(values_rad) -> list[float]:

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from orchestrator.campaign.record import reference_spline
 from orchestrator.review.summary import band_kg, target_mass_kg
 from orchestrator.runlog import RunFile
 from plant_models.plant import JOINTS
@@ -40,13 +41,9 @@ def _record(run: RunFile, k: int) -> dict[str, Any]:
 def plot_joints(run: RunFile, k: int):
     """Period k: planned (dashed) and measured joint angles, and the planned velocity,
     acceleration and jerk with the scenario's limits (paper Figs. 7-8)."""
-    from scipy.interpolate import BSpline
-
     plt = _pyplot()
     record = _record(run, k)
-    spline = record["spline"]
-    reference = BSpline(np.asarray(spline["knots_s"]), np.asarray(spline["coefficients_rad"]),
-                        int(spline["degree"]))
+    reference = reference_spline(record)
     t = np.linspace(0.0, record["duration_s"], 1000)
     limits = run.scenario.get("limits", {})
     rows = (("angle (deg)", None), ("velocity (deg/s)", "velocity_deg_s"),

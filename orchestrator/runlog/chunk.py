@@ -36,27 +36,44 @@ class DoubleBatch:
 
 
 class ChunkBuilder:
-    """The uncompressed records of one chunk plus their message index."""
+    """The uncompressed records of one chunk plus their message index.
+
+    Messages may be added in any time order, in groups (a batch of sample rows, a run of
+    transforms, single messages); `records()` writes them in log-time order (ties keep the
+    order they were added in), because readers that go through a chunk in file order (and
+    `mcap doctor`) expect log time never to go back inside a chunk.
+    """
 
     def __init__(self) -> None:
-        self._parts: list[bytes | np.ndarray] = []
+        # Each group: (rows' log times (n,), rows' byte offsets in `data` (n,), rows' lengths
+        # (n,), data, [(channel id, message offsets inside a row (n,))]). A row holds one
+        # message, or one message per channel of a batch of samples taken at the same time.
+        self._groups: list[tuple[np.ndarray, np.ndarray, np.ndarray, bytes | np.ndarray,
+                                 list[tuple[int, np.ndarray]]]] = []
         self.size = 0
-        self._index: dict[int, list[tuple[np.ndarray, np.ndarray]]] = defaultdict(list)
-        self._singles: dict[int, tuple[list[int], list[int]]] = defaultdict(lambda: ([], []))
         self.start_time: int | None = None
         self.end_time = 0
         self.counts: dict[int, int] = defaultdict(int)
+        self._built: tuple[bytes, dict[int, bytes]] | None = None
 
-    def _note(self, channel_id: int, times: np.ndarray, offsets: np.ndarray) -> None:
-        self._index[channel_id].append((times, offsets))
-        self.counts[channel_id] += len(times)
+    def _add_group(self, times: np.ndarray, starts: np.ndarray, lengths: np.ndarray, data,
+                   entries: list[tuple[int, np.ndarray]]) -> None:
+        times = np.asarray(times, dtype=np.uint64)
+        if len(times) == 0:
+            return
+        self._groups.append((times, np.asarray(starts, dtype=np.int64),
+                             np.asarray(lengths, dtype=np.int64), data, entries))
+        for channel_id, _ in entries:
+            self.counts[channel_id] += len(times)
         low, high = int(times.min()), int(times.max())
         self.start_time = low if self.start_time is None else min(self.start_time, low)
         self.end_time = max(self.end_time, high)
+        self.size += int(lengths.sum())
+        self._built = None
 
     def add_batches(self, batches: list[DoubleBatch], log_time_ns: np.ndarray) -> None:
         """Messages of several channels at the same sample times `log_time_ns` (m,) uint64,
-        interleaved sample by sample so the chunk stays in log-time order."""
+        interleaved sample by sample (one row per sample)."""
         m = len(log_time_ns)
         fields: list[tuple] = []
         for c, batch in enumerate(batches):
@@ -80,18 +97,18 @@ class ChunkBuilder:
                     template[f"c{c}_p{j}"] = np.frombuffer(prefix, dtype=np.uint8)
         block = np.empty(m, dtype=dtype)
         block.view(np.uint8).reshape(m, -1)[:] = template.view(np.uint8)  # bytes: fast copy
+        entries = []
         for c, batch in enumerate(batches):
             block[f"c{c}_sequence"] = batch.first_sequence + np.arange(m, dtype=np.uint32)
             block[f"c{c}_log_time"] = log_time_ns
             block[f"c{c}_publish_time"] = log_time_ns
             for j in range(len(batch.prefixes)):
                 block[f"c{c}_v{j}"] = batch.values[:, j]
-            start = self.size + dtype.fields[f"c{c}_opcode"][1]
-            offsets = start + dtype.itemsize * np.arange(m, dtype=np.uint64)
-            self._note(batch.channel_id, log_time_ns, offsets)
-        data = block.view(np.uint8)
-        self._parts.append(data)
-        self.size += data.nbytes
+            within = np.full(m, dtype.fields[f"c{c}_opcode"][1], dtype=np.int64)
+            entries.append((batch.channel_id, within))
+        width = dtype.itemsize
+        self._add_group(log_time_ns, width * np.arange(m, dtype=np.int64),
+                        np.full(m, width, dtype=np.int64), block.view(np.uint8), entries)
 
     def add_message(self, channel_id: int, sequence: int, log_time_ns: int, data: bytes) -> None:
         """One message of any size."""
@@ -99,15 +116,10 @@ class ChunkBuilder:
             Opcode.MESSAGE, MESSAGE_HEADER.size - 9 + len(data), channel_id, sequence,
             log_time_ns, log_time_ns,
         )
-        times, offsets = self._singles[channel_id]
-        times.append(log_time_ns)
-        offsets.append(self.size)
-        self.counts[channel_id] += 1
-        self.start_time = log_time_ns if self.start_time is None else min(self.start_time,
-                                                                          log_time_ns)
-        self.end_time = max(self.end_time, log_time_ns)
-        self._parts += [header, data]
-        self.size += len(header) + len(data)
+        record = header + data
+        self._add_group(np.array([log_time_ns], dtype=np.uint64), np.zeros(1, dtype=np.int64),
+                        np.array([len(record)]), record,
+                        [(channel_id, np.zeros(1, dtype=np.int64))])
 
     def add_grouped(self, channel_id: int, first_sequence: int, log_time_ns: np.ndarray,
                     groups) -> None:
@@ -126,25 +138,56 @@ class ChunkBuilder:
         head_bytes = head.view(np.uint8).reshape(n, -1)
         data, starts = interleave(n, [(index, np.concatenate([head_bytes[index], payload], axis=1))
                                       for index, payload in groups])
-        self._note(channel_id, times, self.size + starts.astype(np.uint64))
-        self._parts.append(data)
-        self.size += len(data)
+        lengths = np.diff(np.append(starts, len(data)))
+        self._add_group(times, starts, lengths, data, [(channel_id, np.zeros(n, dtype=np.int64))])
+
+    def _build(self) -> tuple[bytes, dict[int, bytes]]:
+        if self._built is not None:
+            return self._built
+        times = np.concatenate([g[0] for g in self._groups])
+        group = np.concatenate([np.full(len(g[0]), i) for i, g in enumerate(self._groups)])
+        row = np.concatenate([np.arange(len(g[0])) for g in self._groups])
+        order = np.argsort(times, kind="stable")  # stable: ties keep the order of adding
+        group, row = group[order], row[order]
+        # Consecutive rows of one group are copied as one slice.
+        breaks = np.flatnonzero((np.diff(group) != 0) | (np.diff(row) != 1)) + 1
+        pieces: list = []
+        new_start = np.empty(len(times), dtype=np.int64)  # of each sorted row, in the chunk
+        position = 0
+        for first, stop in zip(np.r_[0, breaks], np.r_[breaks, len(row)], strict=True):
+            g = self._groups[group[first]]
+            _, starts, lengths, data, _ = g
+            lo, hi = row[first], row[stop - 1]
+            begin, end = starts[lo], starts[hi] + lengths[hi]
+            pieces.append(memoryview(data)[begin:end])  # bytes or a flat uint8 array
+            new_start[first:stop] = position + starts[lo:hi + 1] - begin
+            position += int(end - begin)
+        records = b"".join(pieces)
+        # Where each group's rows went: sorted position -> chunk offset, back to (group, row).
+        placed = np.empty(len(times), dtype=np.int64)
+        placed[order] = new_start
+        index: dict[int, list[tuple[np.ndarray, np.ndarray]]] = defaultdict(list)
+        base = 0
+        for g_times, _, _, _, entries in self._groups:
+            rows_at = placed[base:base + len(g_times)]
+            for channel_id, within in entries:
+                index[channel_id].append((g_times, (rows_at + within).astype(np.uint64)))
+            base += len(g_times)
+        indexes = {}
+        for channel_id, parts in index.items():
+            t = np.concatenate([p[0] for p in parts])
+            offsets = np.concatenate([p[1] for p in parts])
+            o = np.lexsort((offsets, t))
+            entries = np.stack([t[o], offsets[o]], axis=1).astype("<u8").tobytes()
+            head = _RECORD_PREFIX.pack(Opcode.MESSAGE_INDEX, 6 + len(entries))
+            indexes[channel_id] = head + struct.pack("<HI", channel_id, len(entries)) + entries
+        self._built = (records, indexes)
+        return self._built
 
     def records(self) -> bytes:
-        return b"".join(self._parts)
+        """The chunk's records, in log-time order."""
+        return self._build()[0] if self._groups else b""
 
     def message_indexes(self) -> dict[int, bytes]:
         """Channel id -> its MessageIndex record (entries sorted by log time)."""
-        out = {}
-        for channel_id, (times, offsets) in self._singles.items():
-            self._index[channel_id].append((np.array(times, dtype=np.uint64),
-                                            np.array(offsets, dtype=np.uint64)))
-        self._singles.clear()
-        for channel_id, pieces in self._index.items():
-            times = np.concatenate([t for t, _ in pieces])
-            offsets = np.concatenate([o for _, o in pieces])
-            order = np.argsort(times, kind="stable")
-            entries = np.stack([times[order], offsets[order]], axis=1).astype("<u8").tobytes()
-            head = _RECORD_PREFIX.pack(Opcode.MESSAGE_INDEX, 6 + len(entries))
-            out[channel_id] = head + struct.pack("<HI", channel_id, len(entries)) + entries
-        return out
+        return self._build()[1] if self._groups else {}

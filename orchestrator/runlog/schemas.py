@@ -121,28 +121,55 @@ def _triple(unit: str) -> dict:
             "description": f"[boom, stick, bucket], {unit}"}
 
 
-# What the campaign puts in a period record; the writer stores any JSON object as it is, so
-# the schema names the usual keys without requiring them.
+def _number(description: str) -> dict:
+    return {"type": "number", "description": description}
+
+
+def _per_joint(description: str) -> dict:
+    """An object of one flat list per joint (nested arrays have no schema a viewer reads)."""
+    return {"type": "object", "description": description,
+            "properties": {joint: {"type": "array", "items": {"type": "number"}}
+                           for joint in JOINTS},
+            "required": list(JOINTS)}
+
+
+# What the campaign puts in a period record (orchestrator.campaign.record). Every field has a
+# type the viewers' JSON-schema readers take (Foxglove and Lichtblick: scalars, objects with
+# properties, arrays whose items are scalars or objects); the writer stores any JSON object, so
+# a key the schema does not name is kept but not typed.
 PERIOD_SUMMARY_SCHEMA: dict = {
     "title": "excosim.PeriodSummary",
     "description": "One digging period: where it dug, what it weighed, how the arm moved.",
     "type": "object",
     "properties": {
         "k": {"type": "integer", "minimum": 1, "description": "period number, 1-based"},
+        "t0_s": _number("campaign time at the period's start, s"),
         "deepest_point_m": {"type": "array", "items": {"type": "number"}, "minItems": 2,
                             "maxItems": 2, "description": "deepest point D [y, z], m"},
-        "mass_kg": {"type": "number", "description": "weighed mass, kg"},
-        "error_kg": {"type": "number", "description": "target minus weighed mass, kg"},
+        "dz_m": _number("depth step dz of eq. 5, m"),
+        "eps_m": _number("fuzzy correction eps that led to dz, m (null in period 1)"),
+        "flag": {"type": "boolean", "description": "D has been shifted (paper Fig. 5)"},
         "reset": {"type": "boolean", "description": "D was reset (workspace limit)"},
-        "duration_s": {"type": "number", "description": "period duration, s"},
+        "mass_kg": _number("weighed mass, kg"),
+        "error_kg": _number("target minus weighed mass, kg"),
+        "duration_s": _number("period duration, s"),
         "max_abs_velocity_deg_s": _triple("deg/s"),
         "max_abs_acceleration_deg_s2": _triple("deg/s^2"),
         "max_abs_jerk_deg_s3": _triple("deg/s^3"),
         "tracking_rms_deg": _triple("deg"),
-        "planner_ms": {"type": "number", "description": "planner wall time, ms"},
-        "via_points_rad": {"type": "array", "description": "joint via-points, rad"},
-        "segment_durations_s": {"type": "array", "items": {"type": "number"}},
-        "spline": {"type": "object", "description": "B-spline knots and coefficients"},
+        "planner_ms": _number("planner wall time, ms"),
+        "via_points_rad": _per_joint("joint via-points per joint, rad"),
+        "segment_durations_s": {"type": "array", "items": {"type": "number"},
+                                "description": "durations between via-points, s"},
+        "spline": {
+            "type": "object", "description": "the planned reference: a B-spline per joint",
+            "properties": {
+                "degree": {"type": "integer", "description": "spline degree (5)"},
+                "knots_s": {"type": "array", "items": {"type": "number"},
+                            "description": "knot vector, s"},
+                "coefficients_rad": _per_joint("B-spline coefficients per joint, rad"),
+            },
+        },
     },
     "additionalProperties": True,
 }
