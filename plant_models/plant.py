@@ -84,3 +84,13 @@ class Plant(Protocol):
     def close(self) -> None:
         """Release every resource (FMU instances, buses); safe to call twice."""
         ...
+
+
+def initial_pile_surface(plant: Plant) -> tuple[np.ndarray, np.ndarray] | None:
+    """The pile surface before the first period, (y (n,) m, z (n,) m), or None.
+
+    Optional for a plant (a simulation knows its pile, a real machine does not): a plant that
+    knows it offers an `initial_pile_surface()` method returning the same, at the latest once
+    its first period has run."""
+    method = getattr(plant, "initial_pile_surface", None)
+    return method() if callable(method) else None

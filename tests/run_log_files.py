@@ -6,10 +6,14 @@ from mcap.reader import make_reader
 
 
 def chunks(path: Path) -> list:
-    """The file's chunk indexes (mcap ChunkIndex records) in file order: one per period."""
+    """The chunk indexes (mcap ChunkIndex records) of the file's periods, in file order: one per
+    period, the chunk that holds its /period record (the pile's surface at t = 0 has a chunk of
+    its own before them)."""
     with open(path, "rb") as stream:
-        return sorted(make_reader(stream).get_summary().chunk_indexes,
-                      key=lambda c: c.chunk_start_offset)
+        summary = make_reader(stream).get_summary()
+    period = next(c.id for c in summary.channels.values() if c.topic == "/period")
+    return sorted((c for c in summary.chunk_indexes if period in c.message_index_offsets),
+                  key=lambda c: c.chunk_start_offset)
 
 
 def cut_inside_chunk(path: Path, cut: Path, index: int = -1) -> Path:

@@ -73,8 +73,9 @@ def test_every_period_follows_eq5_and_the_reset_of_fig5(dug):
     assert [r["k"] for r in records] == list(range(1, len(records) + 1))
     first = records[0]
     assert first["deepest_point_m"] == [defaults.y_D0, defaults.z_D0]
-    assert (first["dz_m"], first["eps_m"], first["reset"], first["flag"]) == \
+    assert (first["dz_m"], first.get("eps_m"), first["reset"], first["flag"]) == \
         (defaults.dz_0, None, False, False)
+    assert "eps_m" not in first and all("eps_m" in r for r in records[1:])
     resets = [r["k"] for r in records if r["reset"]]
     assert len(resets) == 1, "the double digs deep enough to reach the limit once"
     for before, now in zip(records, records[1:], strict=False):

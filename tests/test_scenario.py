@@ -38,7 +38,7 @@ MISTAKES = [
     ("[limits]\njerk_deg_s3 = [60, 60, nan]", [],
      "limits.jerk_deg_s3: expected a finite number, got nan"),
     ("peroids = 5", [], "peroids: unknown key (known: name, description, seed, periods, "
-     "target_mass_kg, machine, path, limits, trajectory, adaptation, plant)"),
+     "target_mass_kg, machine, path, limits, trajectory, adaptation, plant, log)"),
     ("[trajectory]\nk_t = 0.1", [], "trajectory.k_t: unknown key (known: k_T, k_J)"),
     ('periods = "5"', [], "periods: expected an integer, got '5'"),
     ("periods = 5.0", [], "periods: expected an integer, got 5.0"),
@@ -191,7 +191,7 @@ def test_the_resolved_scenario_round_trips_through_plain_data():
     assert again == scenario
     assert again.to_dict() == data
     assert set(data) == {"name", "description", "seed", "periods", "target_mass_kg", "machine",
-                         "path", "limits", "trajectory", "adaptation", "plant"}
+                         "path", "limits", "trajectory", "adaptation", "plant", "log"}
 
 
 def test_an_fmu_path_resolves_against_the_scenario_folder(tmp_path):

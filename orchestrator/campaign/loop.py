@@ -32,7 +32,7 @@ from orchestrator.scenario.model import Scenario, load_scenario
 from planner.adaptation import Decision, initial_state, next_deepest_point
 from planner.trajectory import JointTrajectory
 from plant_models.geometry import Unreachable
-from plant_models.plant import JointReference, Plant
+from plant_models.plant import JointReference, Plant, initial_pile_surface
 
 # End message of a campaign stopped from outside (Ctrl-C, SystemExit): its ending says nothing
 # about the campaign (orchestrator.review.replay does not compare it).
@@ -88,7 +88,7 @@ def open_run_log(scenario: Scenario, log_path: str | Path, overwrite: bool = Fal
                   scenario_text=scenario_source_text(scenario), scenario_name=scenario.name,
                   fmus=fmus, plant_kind=scenario.plant.kind,
                   target_mass_kg=scenario.target_mass_kg, geometry=scenario.geometry(),
-                  overwrite=overwrite)
+                  sample_rate_hz=scenario.log.sample_rate_hz, overwrite=overwrite)
 
 
 def scenario_source_text(scenario: Scenario) -> str:
@@ -163,6 +163,9 @@ def _dig(scenario: Scenario, plant: Plant, log, records: list,
         record = period_record(state, decision, trajectory, measurement,
                                scenario.target_mass_kg, t0_s)
         if log is not None:
+            surface = initial_pile_surface(plant) if k == 1 else None
+            if surface is not None:  # so that viewers draw the pile from t = 0
+                log.log_pile_surface(*surface, t_s=0.0)
             log.log_period(record, measurement, t0_s)
         records.append(record)
         if progress is not None:

@@ -6,8 +6,8 @@ Keys (angles in the record's own units, per-joint lists in the order boom, stick
     t0_s                       campaign time at the period's start (s)
     deepest_point_m            [y_D, z_D] the period dug through (m)
     dz_m, eps_m, flag, reset   eq. 5's step dz(k) (m); the correction eps (m) that led to it
-                               (None in period 1); Fig. 5's flag; True when D came from the
-                               reset-and-shift
+                               (absent in period 1: no weighing came before it); Fig. 5's flag;
+                               True when D came from the reset-and-shift
     mass_kg, error_kg          weighed mass m_k (kg); error m* - m_k (kg)
     duration_s                 duration of the period's trajectory (s)
     max_abs_velocity_deg_s, max_abs_acceleration_deg_s2, max_abs_jerk_deg_s3
@@ -43,7 +43,7 @@ def period_record(state: AdaptationState, decision: Decision, trajectory: JointT
                   t0_s: float) -> dict[str, Any]:
     """The record of period `state.k` (keys: module docstring)."""
     mass = float(measurement.weighed_mass_kg)
-    return {
+    record = {
         "k": state.k,
         "t0_s": float(t0_s),
         "deepest_point_m": [state.y_D, state.z_D],
@@ -65,6 +65,9 @@ def period_record(state: AdaptationState, decision: Decision, trajectory: JointT
                    "knots_s": np.asarray(trajectory.spline.t).tolist(),
                    "coefficients_rad": per_joint(trajectory.spline.c)},
     }
+    if decision.eps_m is None:  # a JSON null has no type the viewers' schema readers take
+        del record["eps_m"]
+    return record
 
 
 def per_joint(values) -> dict[str, list[float]]:
@@ -101,8 +104,9 @@ def records_dataframe(records: list[dict[str, Any]]):
 
     rows = []
     for record in records:
-        row = {key: record[key] for key in ("k", "t0_s", "mass_kg", "error_kg", "reset", "flag",
-                                            "dz_m", "eps_m", "duration_s", "planner_ms")}
+        row = {key: record.get(key) for key in ("k", "t0_s", "mass_kg", "error_kg", "reset",
+                                                "flag", "dz_m", "eps_m", "duration_s",
+                                                "planner_ms")}
         row["y_D_m"], row["z_D_m"] = record["deepest_point_m"]
         for key in PER_JOINT:
             for joint, value in zip(JOINTS, record[key], strict=True):

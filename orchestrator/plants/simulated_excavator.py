@@ -68,6 +68,7 @@ class SimulatedExcavator:
         self._rng = np.random.default_rng(config.seed)
         self._steps = 0  # communication steps taken by the cylinders
         self._pile_time = 0.0
+        self._initial_surface: tuple[np.ndarray, np.ndarray] | None = None
         designs = []
         for index, (joint, spec) in enumerate(zip(JOINT_NAMES, config.cylinders, strict=True)):
             description = _description(joint, spec)
@@ -113,6 +114,8 @@ class SimulatedExcavator:
         start["pile"] = {"tip_y": tip_y, "tip_z": tip_z, "bucket_angle": -angle, "dump": 0.0}
         self._master = Master(components, cfg.communication_step_s, start)
         self._servos = tuple(JointServo(d) for d in self.servo_designs)
+        profile, grid = self._profile()
+        self._initial_surface = None if profile is None or grid is None else (grid, profile)
 
     def close(self) -> None:
         """Free every FMU instance; safe twice."""
@@ -134,6 +137,11 @@ class SimulatedExcavator:
             return None
         strokes = [self._master[j].outputs[0] for j in JOINT_NAMES]
         return np.array(self.coupling.kinematics(*strokes)[:3])
+
+    def initial_pile_surface(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The pile's surface before the first period: (cell-centre y (n,) m, height z (n,) m);
+        None before the FMUs have started or when the pile FMU has no profile outputs."""
+        return self._initial_surface
 
     def run_period(self, reference: JointReference) -> PeriodMeasurement:
         """Track `reference`, weigh the bucket, empty it, and report (see the module doc)."""

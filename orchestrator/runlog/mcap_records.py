@@ -55,6 +55,7 @@ class McapChunkWriter:
                  compression_level: int = -1) -> None:
         self._stream = stream
         self._offset = 0
+        self._data_crc = 0  # CRC-32 of every byte from the magic up to DataEnd (the spec's)
         self._compressor = zstandard.ZstdCompressor(level=compression_level)
         self._schemas: list[Schema] = []
         self._channels: list[Channel] = []
@@ -71,6 +72,7 @@ class McapChunkWriter:
     def _write(self, data: bytes) -> None:
         self._stream.write(data)
         self._offset += len(data)
+        self._data_crc = zlib.crc32(data, self._data_crc)
 
     def _write_record(self, record) -> int:
         builder = RecordBuilder()
@@ -160,7 +162,7 @@ class McapChunkWriter:
 
     def finish(self) -> None:
         """Write the summary and footer, flush and close the stream."""
-        self._write_record(DataEnd(data_section_crc=0))
+        self._write_record(DataEnd(data_section_crc=self._data_crc))
         summary_start = self._offset
         builder = RecordBuilder()
         offsets: list[SummaryOffset] = []

@@ -4,7 +4,8 @@ protobuf field layout, and the pile profile message (`orchestrator.runlog.schema
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -86,6 +87,23 @@ def checked(measurement: PeriodMeasurement) -> CheckedPeriod:
                 raise ValueError(f"pile_grid_m has shape {grid.shape} but pile_profile_m has "
                                  f"shape {profile.shape}")
     return CheckedPeriod(t, arrays[0], arrays[1], signals, grid, profile)
+
+
+def decimated(period: CheckedPeriod, rate_hz: float | None) -> CheckedPeriod:
+    """The period's samples at about rate_hz (every n-th sample from the first, and the last,
+    which holds the period's end state); all of them for rate_hz None."""
+    if rate_hz is None or len(period.t_s) < 2:
+        return period
+    step = float(np.median(np.diff(period.t_s)))
+    stride = max(1, int(math.floor(1.0 / (rate_hz * step) + 0.5))) if step > 0.0 else 1
+    if stride == 1:
+        return period
+    keep = np.arange(0, len(period.t_s), stride)
+    if keep[-1] != len(period.t_s) - 1:
+        keep = np.append(keep, len(period.t_s) - 1)
+    return replace(period, t_s=period.t_s[keep], joints_rad=period.joints_rad[keep],
+                   reference_rad=period.reference_rad[keep],
+                   signals={name: values[keep] for name, values in period.signals.items()})
 
 
 def sample_channels(period: CheckedPeriod, times_s: np.ndarray) -> list[SampleChannel]:

@@ -147,7 +147,7 @@ PERIOD_SUMMARY_SCHEMA: dict = {
         "deepest_point_m": {"type": "array", "items": {"type": "number"}, "minItems": 2,
                             "maxItems": 2, "description": "deepest point D [y, z], m"},
         "dz_m": _number("depth step dz of eq. 5, m"),
-        "eps_m": _number("fuzzy correction eps that led to dz, m (null in period 1)"),
+        "eps_m": _number("fuzzy correction eps that led to dz, m (absent in period 1)"),
         "flag": {"type": "boolean", "description": "D has been shifted (paper Fig. 5)"},
         "reset": {"type": "boolean", "description": "D was reset (workspace limit)"},
         "mass_kg": _number("weighed mass, kg"),

@@ -55,7 +55,7 @@ from orchestrator.runlog.metadata import (
     to_json,
     write_run_description,
 )
-from orchestrator.runlog.samples import checked, profile_message, sample_channels
+from orchestrator.runlog.samples import checked, decimated, profile_message, sample_channels
 from orchestrator.runlog.schemas import (
     PERIOD_SUMMARY_SCHEMA,
     PILE_PROFILE,
@@ -77,8 +77,10 @@ class RunLog:
     scenario: the resolved scenario (JSON-able dict); scenario_text: the scenario file's text;
     fmus: name -> path of every FMU used; plant_kind: "sim" or "lab"; target_mass_kg: the
     target dug mass (kg); geometry: the arm, for the 3D channels (None: no /tf, /scene/arm).
-    transform_rate_hz: rate of /tf (decimated from the samples). fsync: also force each period
-    to the disk (survives a power loss, not only a killed process; costs a disk sync per period).
+    transform_rate_hz: rate of /tf (decimated from the samples). sample_rate_hz: rate of the
+    high-rate sample channels (None: every sample; see samples.decimated). fsync: also force
+    each period to the disk (survives a power loss, not only a killed process; costs a disk
+    sync per period).
     Use as a context manager: an exception inside closes the log with termination "error";
     leaving the block normally closes it with "periods" unless `close` was called.
     """
@@ -86,12 +88,14 @@ class RunLog:
     def __init__(self, path: str | Path, *, scenario: Mapping, scenario_text: str,
                  scenario_name: str, fmus: Mapping[str, str | Path], plant_kind: str,
                  target_mass_kg: float, geometry: ExcavatorGeometry | None = None,
-                 transform_rate_hz: float = 25.0, fsync: bool = False,
-                 overwrite: bool = False) -> None:
+                 transform_rate_hz: float = 25.0, sample_rate_hz: float | None = None,
+                 fsync: bool = False, overwrite: bool = False) -> None:
         if not (isinstance(target_mass_kg, int | float) and math.isfinite(target_mass_kg)):
             raise ValueError(f"target_mass_kg must be a finite number, got {target_mass_kg!r}")
         if not transform_rate_hz > 0.0:
             raise ValueError(f"transform_rate_hz must be > 0, got {transform_rate_hz!r}")
+        if sample_rate_hz is not None and not sample_rate_hz > 0.0:
+            raise ValueError(f"sample_rate_hz must be > 0 or None, got {sample_rate_hz!r}")
         fmu_files = read_fmus(fmus)
         scenario_json = to_json(dict(scenario), "scenario")
         self.path = Path(path)
@@ -101,6 +105,7 @@ class RunLog:
             raise FileExistsError(f"run log {self.path} already exists") from None
         self._geometry = geometry
         self._rate_hz = float(transform_rate_hz)
+        self._sample_rate_hz = sample_rate_hz
         self._fsync = fsync
         self._periods = 0
         self._closed = False
@@ -157,7 +162,7 @@ class RunLog:
         if not isinstance(record, Mapping):
             raise ValueError(f"period {period} record must be a dict, got {type(record)}")
         record_json = to_json(dict(record), f"period {period} record").encode()
-        period_data = checked(measurement)
+        period_data = decimated(checked(measurement), self._sample_rate_hz)
         t, joints = period_data.t_s, period_data.joints_rad
         if not (math.isfinite(t0_s) and t0_s >= 0.0 and t0_s + t[0] >= 0.0):
             raise ValueError(f"t0_s must be finite and t0_s + t_s >= 0, got t0_s = {t0_s!r}")
@@ -191,6 +196,30 @@ class RunLog:
         self._writer.write_chunk(chunk)
         self._writer.flush(self._fsync)
         self._periods = period
+
+    def log_pile_surface(self, grid_m: np.ndarray, profile_m: np.ndarray, t_s: float = 0.0
+                         ) -> None:
+        """Write the pile surface (cell-centre y (n,) m, height z (n,) m) at campaign time t_s
+        (s) on /pile/profile and /scene/pile, as one flushed chunk: the surface before the first
+        period, so that a viewer draws the pile from the start."""
+        if self._closed:
+            raise ValueError(f"run log {self.path} is closed")
+        grid, profile = np.asarray(grid_m, dtype=float), np.asarray(profile_m, dtype=float)
+        if grid.ndim != 1 or grid.shape != profile.shape or not (
+                np.isfinite(grid).all() and np.isfinite(profile).all()):
+            raise ValueError("pile surface: grid and profile must be finite arrays of one shape")
+        if not (math.isfinite(t_s) and t_s >= 0.0):
+            raise ValueError(f"t_s must be finite and >= 0, got {t_s!r}")
+        time_ns = int(round(t_s * 1e9))
+        chunk = ChunkBuilder()
+        channel = self._proto_channel("/pile/profile", PILE_PROFILE, {})
+        chunk.add_message(channel, self._writer.reserve_sequence(channel, 1), time_ns,
+                          profile_message(t_s, grid, profile))
+        pile = self._foxglove_channel("/scene/pile", SceneUpdate)
+        chunk.add_message(pile, self._writer.reserve_sequence(pile, 1), time_ns,
+                          scene.pile_scene(time_ns, grid, profile, None, self._geometry))
+        self._writer.write_chunk(chunk)
+        self._writer.flush(self._fsync)
 
     def _add_arm(self, chunk: ChunkBuilder, joints: np.ndarray, log_ns: np.ndarray,
                  start_ns: int) -> None:

@@ -34,6 +34,7 @@ from orchestrator.scenario.overrides import apply_overrides
 from orchestrator.scenario.sections import (
     AdaptationSection,
     LimitsSection,
+    LogSection,
     MachineSection,
     PathSection,
     PlantSection,
@@ -66,6 +67,7 @@ class Scenario(Section):
     trajectory: TrajectorySection
     adaptation: AdaptationSection
     plant: PlantSection
+    log: LogSection = LogSection()
     _source_text: str | None = PrivateAttr(default=None)  # the file's text, comments and all
 
     def __eq__(self, other: object) -> bool:
@@ -154,6 +156,7 @@ def preset_defaults(preset: str) -> dict[str, Any]:
             "outputs_m": [v * scale for v in PAPER_OUTPUTS_M],
         },
         "plant": _plant_defaults(preset),
+        "log": {},
     }
 
 

@@ -99,6 +99,14 @@ class FmuSection(Section):
         return FmuSpec(fmu=self.fmu, parameters=dict(self.parameters), ports=dict(self.ports))
 
 
+class LogSection(Section):
+    """What the run log keeps; it changes no result. sample_rate_hz: the rate of the high-rate
+    sample channels (/joints, /cylinder/*, /pile/bucket, /signals/*), taken every n-th
+    communication step (each period's last sample always kept); absent: every step."""
+
+    sample_rate_hz: Number | None = Field(default=None, gt=0.0)
+
+
 class PlantSection(Section):
     kind: StrictStr
     communication_step_s: Number = Field(gt=0.0)
