@@ -47,7 +47,8 @@ PATH_FUNCTIONS = {
 PATH = re.compile(r"^(?P<topic>/[A-Za-z0-9_/]+)(?P<fields>(\.[A-Za-z_]\w*(\[-?\d+\])?)*)"
                   r"(?P<functions>(\.@[a-z0-9]+(\([^)]*\))?)*)$")
 # What a field's unit suffix becomes after the path's functions (SI name -> axis unit).
-UNIT_SUFFIXES = {"_rad": "rad", "_Pa": "Pa", "_kg": "kg", "_N": "N"}
+UNIT_SUFFIXES = {"_rad": "rad", "_Pa": "Pa", "_kg": "kg", "_N": "N", "_deg": "deg", "_bar": "bar",
+                 "_kN": "kN"}
 CONVERSIONS = {("rad", "degrees", None): "deg", ("Pa", "div", 1e5): "bar"}
 
 
@@ -237,8 +238,8 @@ def test_every_topic_field_and_frame_exists_in_a_run_log(layout, run_log):
 
 
 @pytest.mark.parametrize("old, new", [
-    ("/joints.measured_boom_rad", "/joints.measured_boom"),  # a renamed protobuf field
-    ("/cylinder/stick.p_B_Pa", "/cylinders/stick.p_B_Pa"),   # a renamed topic
+    ("/display.measured_boom_deg", "/display.measured_boom"),  # a renamed protobuf field
+    ("/display.p_B_stick_bar", "/displays.p_B_stick_bar"),     # a renamed topic
     ("/period.error_kg", "/period.weight_error_kg"),          # a renamed JSON field
     ('"followTf": "world"', '"followTf": "map"'),             # a frame /tf does not have
     ('"/scene/pile": {', '"/scene/piles": {'),                # a 3D topic
@@ -305,10 +306,23 @@ def test_every_series_is_in_the_unit_its_axis_names(layout):
         assert units == {config["yAxisLabel"]}, panel_id
 
 
-def test_only_documented_path_functions_are_used(layout):
+def test_the_layout_reads_the_same_in_foxglove_and_lichtblick(layout):
+    """Lichtblick has no message-path functions (`.@div(...)` is a syntax error there, and
+    `.@degrees` is ignored) and ignores `lineStyle`: the layout uses neither, plotting /display,
+    which is logged in the units the axes name."""
     used = {function for value in message_paths(layout)
             for function, _ in parse_path(value)[2]}
-    assert used and used <= PATH_FUNCTIONS
+    assert used == set() and used <= PATH_FUNCTIONS
+    assert "lineStyle" not in json.dumps(layout)
+
+
+def test_measured_is_drawn_over_reference(layout):
+    # Both viewers draw a plot's series with Chart.js, which paints the first dataset last (on
+    # top): the measured angle comes first, the reference under it, wider and light.
+    for joint in ("boom", "stick", "bucket"):
+        paths = [p["value"] for p in layout["configById"][f"Plot!{joint}"]["paths"]]
+        assert paths.index(f"/display.measured_{joint}_deg") \
+            < paths.index(f"/display.reference_{joint}_deg")
 
 
 def test_reference_lines_are_the_review_band_and_the_paper_target(layout):

@@ -376,7 +376,8 @@ def test_an_exception_inside_the_run_is_recorded(tmp_path, fmus):
     assert len(run.periods) == 1
 
 
-def test_without_geometry_or_profile_only_the_samples_and_records_are_logged(tmp_path, fmus):
+def test_without_geometry_or_profile_only_the_samples_display_and_records_are_logged(tmp_path,
+                                                                                    fmus):
     path = tmp_path / "run.mcap"
     bare = measurement(0)
     bare = PeriodMeasurement(bare.t_s, bare.joints_rad, bare.reference_rad, 1.0,
@@ -385,7 +386,8 @@ def test_without_geometry_or_profile_only_the_samples_and_records_are_logged(tmp
                 plant_kind="lab", target_mass_kg=2.0, fsync=True) as log:
         log.log_period(record(1), bare, 0.0)
     run = read_run(path, tolerant=False)
-    assert run.message_counts == {"/joints": SAMPLES, "/pile/bucket": SAMPLES, "/period": 1}
+    assert run.message_counts == {"/joints": SAMPLES, "/pile/bucket": SAMPLES, "/period": 1,
+                                  "/display": SAMPLES // 4}  # at the /tf rate, 25 Hz
     assert run.termination == "periods" and "excosim.geometry" not in run.metadata
     assert run.attachments == {"scenario.json": b'{"name": "lab"}'}  # not TOML: named .json
 

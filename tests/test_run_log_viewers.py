@@ -166,3 +166,54 @@ def test_the_pile_is_in_the_log_from_t_0(heap_run):
     assert [e.id for e in scenes[0][1].entities] == ["pile/surface"]  # no tip path yet
     np.testing.assert_allclose(max(p.z for p in scenes[0][1].entities[0].triangles[0].points),
                                z.max(), rtol=0, atol=1e-12)
+
+
+def decoded_by_time(path: Path, topic: str) -> dict[int, object]:
+    with open(path, "rb") as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        return {m.log_time: d for _, _, m, d in reader.iter_decoded_messages(topics=[topic])}
+
+
+def test_the_display_channel_holds_the_si_samples_in_the_units_a_person_reads(heap_run):
+    path, _, _ = heap_run
+    display = decoded_by_time(path, "/display")
+    joints, pile = decoded_by_time(path, "/joints"), decoded_by_time(path, "/pile/bucket")
+    cylinders = {j: decoded_by_time(path, f"/cylinder/{j}") for j in ("boom", "stick", "bucket")}
+    tf_times = set(decoded_by_time(path, "/tf"))
+    assert set(display) == tf_times and len(display) > 100  # at the /tf rate
+    for time, d in display.items():
+        for joint in ("boom", "stick", "bucket"):
+            reference = np.degrees(getattr(joints[time], f"reference_{joint}_rad"))
+            measured = np.degrees(getattr(joints[time], f"measured_{joint}_rad"))
+            assert getattr(d, f"reference_{joint}_deg") == pytest.approx(reference, abs=1e-9)
+            assert getattr(d, f"measured_{joint}_deg") == pytest.approx(measured, abs=1e-9)
+            assert getattr(d, f"tracking_error_{joint}_deg") == pytest.approx(
+                measured - reference, abs=1e-9)
+            for chamber in ("A", "B"):
+                pa = getattr(cylinders[joint][time], f"p_{chamber}_Pa")
+                assert getattr(d, f"p_{chamber}_{joint}_bar") == pytest.approx(pa / 1e5, rel=1e-12)
+        assert d.soil_F_y_kN == pytest.approx(pile[time].F_y_N / 1e3, rel=1e-12, abs=1e-15)
+        assert d.bucket_mass_kg == pile[time].bucket_mass_kg
+
+
+def test_a_lower_sample_rate_decimates_the_samples_and_keeps_each_period_end(tmp_path):
+    scenario = load_scenario(ROOT / "scenarios" / "paper-2020.toml",
+                             ["periods=2", "log.sample_rate_hz=20"])
+    full, thin = tmp_path / "full.mcap", tmp_path / "thin.mcap"
+    for path, overrides in ((full, []), (thin, ["log.sample_rate_hz=20"])):
+        result = run_campaign(load_scenario(ROOT / "scenarios" / "paper-2020.toml",
+                                            ["periods=2", *overrides]), log_path=path)
+        assert result.termination == "periods"
+    every, some = (read_run(p, topics=("/joints",)).channels["/joints"] for p in (full, thin))
+    def results(path):  # the planner's wall time is not a result
+        return [{k: v for k, v in r.items() if k != "planner_ms"} for r in read_run(path).periods]
+
+    assert results(full) == results(thin)  # logging changes no result
+    step = scenario.plant.communication_step_s
+    assert np.median(np.diff(some.log_time_ns)) == pytest.approx(0.05e9 / step * step, rel=1e-6)
+    for k in (1, 2):
+        a, b = every.of_period(k), some.of_period(k)
+        assert b["t_s"][-1] == a["t_s"][-1]  # the period's end state is kept
+        assert np.isin(b["t_s"], a["t_s"]).all()
+        assert len(b["t_s"]) == pytest.approx(len(a["t_s"]) / 5, abs=2)
+    assert thin.stat().st_size < 0.4 * full.stat().st_size

@@ -11,6 +11,8 @@ import numpy as np
 
 from orchestrator.runlog.schemas import (
     CYLINDER_STATE,
+    DISPLAY_SAMPLE,
+    DISPLAY_SCALE,
     JOINT_STATE,
     PILE_BUCKET_STATE,
     PILE_PROFILE,
@@ -48,13 +50,13 @@ class SampleChannel:
 
 
 def double_tag(number: int) -> bytes:
-    """Protobuf tag of double field `number` (wire type fixed64)."""
-    return bytes([number << 3 | 1])
+    """Protobuf tag of double field `number` (wire type fixed64; two bytes from field 16 on)."""
+    return varint(number << 3 | 1)
 
 
 def _packed_tag(number: int, count: int) -> bytes:
     """Tag and length of a packed repeated double field of `count` values."""
-    return bytes([number << 3 | 2]) + varint(8 * count)
+    return varint(number << 3 | 2) + varint(8 * count)
 
 
 def checked(measurement: PeriodMeasurement) -> CheckedPeriod:
@@ -151,3 +153,26 @@ def profile_message(time_s: float, grid_m: np.ndarray | None, profile_m: np.ndar
             data += _packed_tag(PILE_PROFILE.number(name), values.size)
             data += values.astype("<f8").tobytes()
     return data
+
+
+def display_channel(period: CheckedPeriod, times_s: np.ndarray, picked: np.ndarray
+                    ) -> SampleChannel:
+    """/display at the samples `picked` (indices into the period): the fields of
+    schemas.DISPLAY_SAMPLE whose source was measured, in deg, bar, kN and kg."""
+    angles = {"reference": period.reference_rad[picked], "measured": period.joints_rad[picked]}
+    angles["error"] = angles["measured"] - angles["reference"]
+    columns, fields = [times_s[picked]], []
+    for name, source in zip(DISPLAY_SAMPLE.fields[1:], DISPLAY_SAMPLE.signals[1:], strict=True):
+        kind, _, what = source.partition(".")
+        if kind in angles:
+            values = angles[kind][:, JOINTS.index(what)]
+        elif source in period.signals:
+            values = period.signals[source][picked]
+        else:
+            continue
+        unit = "_" + name.rsplit("_", 1)[1]
+        columns.append(values * DISPLAY_SCALE[unit])
+        fields.append(name)
+    return SampleChannel("/display", DISPLAY_SAMPLE, {},
+                         tuple(double_tag(DISPLAY_SAMPLE.number(f)) for f in ("t_s", *fields)),
+                         np.column_stack(columns))

@@ -6,7 +6,9 @@ absent from the message (not a misleading 0). Every high-rate message is a flat 
 (field 1 is always `t_s`, campaign time in s), so the writer can encode a whole period at once
 with numpy (`orchestrator.runlog.mcap_records`). Field numbers never change; new fields get new
 numbers.
-Names carry their SI unit (`_m`, `_m_s`, `_Pa`, `_N`, `_kg`, `_rad`, `_m3`).
+Names carry their SI unit (`_m`, `_m_s`, `_Pa`, `_N`, `_kg`, `_rad`, `_m3`), except on
+/display (DisplaySample), whose fields are in the units a person reads (deg, bar, kN), so that a
+viewer's plot needs no unit conversion (Lichtblick has no message-path math).
 
 Signal names come from `plant_models.plant.PeriodMeasurement.signals` ("<component>.<variable>")
 and the FMU roles of `plant_models.model_spec`.
@@ -91,7 +93,26 @@ PILE_PROFILE = DoubleMessage("PileProfile", ("t_s",), repeated=("y_m", "z_m"))
 # Any other signals of one component: `values` in the order the channel metadata "names" gives.
 SIGNAL_SAMPLE = DoubleMessage("SignalSample", ("t_s",), repeated=("values",))
 
-MESSAGES = (JOINT_STATE, CYLINDER_STATE, PILE_BUCKET_STATE, PILE_PROFILE, SIGNAL_SAMPLE)
+# What a person reads in a viewer, at the /tf rate: angles and tracking error in deg, chamber
+# pressures in bar, the soil force in kN (field -> source: a joint angle, or a signal).
+_DISPLAY = (
+    tuple((f"reference_{joint}_deg", f"reference.{joint}") for joint in JOINTS)
+    + tuple((f"measured_{joint}_deg", f"measured.{joint}") for joint in JOINTS)
+    + tuple((f"tracking_error_{joint}_deg", f"error.{joint}") for joint in JOINTS)
+    + tuple((f"p_{chamber}_{joint}_bar", f"{joint}.p_{chamber}")
+            for joint in JOINTS for chamber in ("A", "B"))
+    + (("soil_F_y_kN", "pile.F_y"), ("soil_F_z_kN", "pile.F_z"),
+       ("bucket_mass_kg", "pile.bucket_mass"))
+)
+DISPLAY_SAMPLE = DoubleMessage(
+    "DisplaySample",
+    ("t_s",) + tuple(name for name, _ in _DISPLAY),
+    ("",) + tuple(source for _, source in _DISPLAY),
+)
+DISPLAY_SCALE = {"_deg": 57.29577951308232, "_bar": 1e-5, "_kN": 1e-3, "_kg": 1.0}  # per SI unit
+
+MESSAGES = (JOINT_STATE, CYLINDER_STATE, PILE_BUCKET_STATE, PILE_PROFILE, SIGNAL_SAMPLE,
+            DISPLAY_SAMPLE)
 
 
 def file_descriptor_set(message: DoubleMessage) -> bytes:

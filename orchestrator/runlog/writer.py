@@ -55,7 +55,13 @@ from orchestrator.runlog.metadata import (
     to_json,
     write_run_description,
 )
-from orchestrator.runlog.samples import checked, decimated, profile_message, sample_channels
+from orchestrator.runlog.samples import (
+    checked,
+    decimated,
+    display_channel,
+    profile_message,
+    sample_channels,
+)
 from orchestrator.runlog.schemas import (
     PERIOD_SUMMARY_SCHEMA,
     PILE_PROFILE,
@@ -176,9 +182,13 @@ class RunLog:
             first = self._writer.reserve_sequence(channel, len(times))
             batches.append(DoubleBatch(channel, first, sample.prefixes, sample.values))
         chunk.add_batches(batches, log_ns)
+        picked = np.arange(0, len(t), scene.decimation_stride(t, self._rate_hz))
+        display = display_channel(period_data, times, picked)
+        channel = self._proto_channel(display.topic, display.message, display.metadata)
+        chunk.add_batches([DoubleBatch(channel, self._writer.reserve_sequence(channel, len(picked)),
+                                       display.prefixes, display.values)], log_ns[picked])
         tip_path = None
         if self._geometry is not None:
-            picked = np.arange(0, len(t), scene.decimation_stride(t, self._rate_hz))
             self._add_arm(chunk, joints[picked], log_ns[picked], start_ns)
             tip_path = scene.tip_positions(self._geometry, joints[picked])
         grid, profile = period_data.pile_grid_m, period_data.pile_profile_m
