@@ -144,25 +144,22 @@ class ChunkBuilder:
     def _build(self) -> tuple[bytes, dict[int, bytes]]:
         if self._built is not None:
             return self._built
-        times = np.concatenate([g[0] for g in self._groups])
-        group = np.concatenate([np.full(len(g[0]), i) for i, g in enumerate(self._groups)])
-        row = np.concatenate([np.arange(len(g[0])) for g in self._groups])
+        groups = self._groups
+        times = np.concatenate([g[0] for g in groups])
+        group = np.concatenate([np.full(len(g[0]), i) for i, g in enumerate(groups)])
+        row = np.concatenate([np.arange(len(g[0])) for g in groups])
+        starts = np.concatenate([g[1] for g in groups])
+        lengths = np.concatenate([g[2] for g in groups])
         order = np.argsort(times, kind="stable")  # stable: ties keep the order of adding
-        group, row = group[order], row[order]
-        # Consecutive rows of one group are copied as one slice.
-        breaks = np.flatnonzero((np.diff(group) != 0) | (np.diff(row) != 1)) + 1
-        pieces: list = []
-        new_start = np.empty(len(times), dtype=np.int64)  # of each sorted row, in the chunk
-        position = 0
-        for first, stop in zip(np.r_[0, breaks], np.r_[breaks, len(row)], strict=True):
-            g = self._groups[group[first]]
-            _, starts, lengths, data, _ = g
-            lo, hi = row[first], row[stop - 1]
-            begin, end = starts[lo], starts[hi] + lengths[hi]
-            pieces.append(memoryview(data)[begin:end])  # bytes or a flat uint8 array
-            new_start[first:stop] = position + starts[lo:hi + 1] - begin
-            position += int(end - begin)
-        records = b"".join(pieces)
+        group, row, starts, lengths = group[order], row[order], starts[order], lengths[order]
+        new_start = np.cumsum(lengths) - lengths  # of each sorted row, in the chunk
+        # Consecutive rows of one group are copied as one slice of its data.
+        first = np.flatnonzero(np.r_[True, (np.diff(group) != 0) | (np.diff(row) != 1)])
+        last = np.r_[first[1:], len(row)] - 1
+        views = [memoryview(g[3]) for g in groups]  # bytes or a flat uint8 array
+        records = b"".join([views[g][b:e] for g, b, e in zip(
+            group[first].tolist(), starts[first].tolist(),
+            (starts[last] + lengths[last]).tolist(), strict=True)])
         # Where each group's rows went: sorted position -> chunk offset, back to (group, row).
         placed = np.empty(len(times), dtype=np.int64)
         placed[order] = new_start
