@@ -82,7 +82,7 @@ def test_a_campaign_exits_0_prints_its_table_and_logs_every_period(tmp_path, dou
     for k in (1, 2, 3):
         assert f"\n  {k}   (-9.00, " in out
     # the on-target band is 10 % of m*: the paper's +-3 kg at 30 kg, +-2.5 kg at 25 kg
-    assert "termination: periods (3 periods dug); within +/-2.5 kg after period 1:" in out
+    assert "dug all 3 planned periods; within +/-2.5 kg after period 1:" in out
     logs = list((tmp_path / "runs").glob("paper-2020-*.mcap"))
     assert len(logs) == 1 and f"log: {Path('runs') / logs[0].name}" in out
     run = read_run(logs[0])
@@ -113,7 +113,7 @@ def test_the_simulated_excavator_digs_one_period_from_the_command_line(tmp_path)
     done = _excosim("run", str(PAPER), "--periods", "1", "-o", "one.mcap", cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     assert "Traceback" not in done.stderr
-    assert "termination: periods (1 periods dug)" in done.stdout
+    assert "dug the 1 planned period;" in done.stdout
     run = read_run(tmp_path / "one.mcap")
     assert run.finished and run.termination == "periods" and len(run.periods) == 1
     # The paper's first period (section 3.2: 8.5 kg), as calibrated in the scenario.

@@ -60,7 +60,7 @@ def test_the_table_shows_every_period_and_how_the_run_ended(paper_run):
     path, result = paper_run
     done = _review(path)
     assert done.exit_code == 0
-    assert "dug its planned periods after 3 periods" in done.stdout
+    assert "dug all 3 planned periods" in done.stdout
     for record in result.records:
         assert f"{record['mass_kg']:.2f}" in done.stdout
 

@@ -1,7 +1,8 @@
 """The `excosim` command line.
 
 Every user mistake ends in one line on stderr and exit status 2; a runtime failure in one line and
-exit status 1. No traceback reaches a user.
+exit status 1; Ctrl-C in one line and 130. No traceback reaches a user. `-h`/`--help` on every
+command, `--version`, `excosim completion SHELL` (orchestrator.cli.conventions).
 """
 
 from __future__ import annotations
@@ -11,29 +12,62 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.console import Console
+
+from orchestrator.cli.conventions import (
+    HELP_OPTIONS,
+    PROG,
+    SHELLS,
+    Command,
+    Group,
+    completion_script,
+    enable_completion,
+    fail,
+    version,
+)
 
 app = typer.Typer(
+    cls=Group,
+    name=PROG,
     help="Co-simulation of an autonomous excavator that digs to a target weight.",
     no_args_is_help=True,
-    add_completion=False,
+    add_completion=False,  # `excosim completion SHELL` instead: no shell detection to fail
     pretty_exceptions_enable=False,
+    context_settings=HELP_OPTIONS,
 )
-fmus_app = typer.Typer(help="Build and try the FMUs (FMI 2.0 co-simulation).", no_args_is_help=True)
+fmus_app = typer.Typer(cls=Group, help="Build and try the FMUs (FMI 2.0 co-simulation).",
+                       no_args_is_help=True, context_settings=HELP_OPTIONS)
 app.add_typer(fmus_app, name="fmus")
 
-_err = Console(stderr=True, highlight=False)
+RUN_LOG = "RUN.mcap"
 
 
 def _fail(message: str, code: int) -> None:
-    _err.print(f"excosim: {message}", markup=False, soft_wrap=True)
+    fail(message)
     raise typer.Exit(code)
 
 
-@fmus_app.command("build")
+def _show_version(value: bool) -> None:
+    if value:
+        print(f"excosim {version()}")
+        raise typer.Exit(0)
+
+
+@app.callback()
+def main_options(
+    show_version: Annotated[
+        bool, typer.Option("--version", "-V", callback=_show_version, is_eager=True,
+                           help="Print `excosim <version>` and exit.")
+    ] = False,
+) -> None:
+    """Co-simulation of an autonomous excavator that digs to a target weight."""
+
+
+@fmus_app.command("build", cls=Command)
 def fmus_build(
     names: Annotated[
-        list[str] | None, typer.Argument(help="Models to build (default: all).")
+        list[str] | None,
+        typer.Argument(metavar="MODEL", help="Models to build, e.g. HydraulicCylinder "
+                       "(default: all)."),
     ] = None,
 ) -> None:
     """Build FMUs from fmus/<Model>/ and print one line per FMU: name and path."""
@@ -50,7 +84,7 @@ def fmus_build(
         _fail(str(exc), 1)
 
 
-@fmus_app.command("demo")
+@fmus_app.command("demo", cls=Command)
 def fmus_demo() -> None:
     """Simulate each FMU briefly and print a short summary."""
     import fmus
@@ -61,60 +95,94 @@ def fmus_demo() -> None:
         _fail(str(exc), 1)
 
 
-@app.command("run")
+@app.command("run", cls=Command)
 def run(
-    scenario: Annotated[Path, typer.Argument(help="Scenario TOML file.")],
+    scenario: Annotated[Path, typer.Argument(
+        metavar="SCENARIO.toml", help="Scenario file, e.g. scenarios/paper-2020.toml.")],
     output: Annotated[
         Path | None,
-        typer.Option("-o", "--output", help="MCAP log to write "
-                     "(default: runs/<scenario-name>-<UTC time>.mcap)."),
+        typer.Option("-o", "--output", metavar=RUN_LOG, help="Log to write (default: a new "
+                     "runs/<scenario>-<UTC time>-<scenario hash>.mcap)."),
     ] = None,
     periods: Annotated[
-        int | None, typer.Option("--periods", min=1, help="Dig this many periods.")
+        int | None, typer.Option("--periods", metavar="N", help="Dig N periods (at least 1).")
     ] = None,
     overrides: Annotated[
         list[str] | None,
-        typer.Option("--set", help="Override a scenario value, e.g. --set periods=5 or "
-                     "--set plant.pile.parameters.density=1800 (repeatable)."),
+        typer.Option("--set", metavar="KEY=VALUE", help="Override a scenario value, e.g. --set "
+                     "periods=5 or --set plant.pile.parameters.density=1800 (repeatable)."),
     ] = None,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print one JSON object (scenario, termination, "
+                           "path, periods, figures, ...) instead of the table.")
+    ] = False,
+    quiet: Annotated[
+        bool, typer.Option("--quiet", "-q", help="Print nothing but errors.")
+    ] = False,
+    force: Annotated[
+        bool, typer.Option("--force", "-f", help="Overwrite the -o file if it exists.")
+    ] = False,
 ) -> None:
     """Run a digging campaign: plan, dig and weigh period after period; log it to MCAP."""
     from orchestrator.cli import run as run_command
 
+    if as_json and quiet:
+        _fail("--json and --quiet exclude each other", 2)
     items = [*(overrides or []), *([f"periods={periods}"] if periods is not None else [])]
-    failure = run_command.run(scenario, output, items)
+    failure = run_command.run(scenario, output, items, as_json=as_json, quiet=quiet,
+                              force=force)
     if failure is not None:
         _fail(*failure)
 
 
-@app.command("review")
+@app.command("review", cls=Command)
 def review(
-    run_log: Annotated[Path, typer.Argument(help="Run log (.mcap) written by `excosim run`.")],
+    run_log: Annotated[Path, typer.Argument(metavar=RUN_LOG,
+                                            help="Run log written by `excosim run`.")],
     as_json: Annotated[
         bool, typer.Option("--json", help="Print one JSON object (scenario, plant, "
                            "target_mass_kg, termination, periods, ...).")
     ] = False,
     plots: Annotated[
-        Path | None, typer.Option("--plots", help="Write PNG figures into this folder.")
+        Path | None, typer.Option("--plots", metavar="DIR", help="Write PNG figures into DIR.")
     ] = None,
     period: Annotated[
-        int, typer.Option("--period", min=1, help="Period of the per-period figures.")
+        int, typer.Option("--period", metavar="K", help="Period of the per-period figures.")
     ] = 1,
+    csv: Annotated[
+        Path | None, typer.Option("--csv", metavar="FILE.csv", help="Write the period table "
+                                  "as CSV: one row per period.")
+    ] = None,
+    csv_channels: Annotated[
+        list[str] | None,
+        typer.Option("--csv-channels", metavar="TOPIC[,TOPIC]", help="Write these numeric "
+                     "channels (e.g. /joints,/cylinder/boom) as CSV, one file per channel: "
+                     "t_s, period, one column per field with its unit."),
+    ] = None,
+    csv_dir: Annotated[
+        Path | None, typer.Option("--csv-dir", metavar="DIR", help="Folder of the "
+                                  "--csv-channels files (default: the current folder).")
+    ] = None,
 ) -> None:
     """Summarise a run from its log alone: scenario, how it ended, one row per period."""
-    from orchestrator.cli.review import review_run
+    from orchestrator.cli.review import CsvRequest, review_run
 
-    failure = review_run(run_log, as_json, plots, period)
+    if csv_dir is not None and not csv_channels:
+        _fail("--csv-dir: give the channels to write with --csv-channels TOPIC[,TOPIC]", 2)
+    request = CsvRequest(csv, csv_channels or [], csv_dir or Path("."))
+    failure = review_run(run_log, as_json, plots, period, request)
     if failure is not None:
         _fail(*failure)
 
 
-@app.command("compare")
+@app.command("compare", cls=Command)
 def compare(
-    run_logs: Annotated[list[Path], typer.Argument(help="Run logs (.mcap) to compare.")],
+    run_logs: Annotated[list[Path], typer.Argument(metavar=RUN_LOG,
+                                                   help="Run logs to compare.")],
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     plots: Annotated[
-        Path | None, typer.Option("--plots", help="Write the weight-error overlay here.")
+        Path | None, typer.Option("--plots", metavar="DIR",
+                                  help="Write the weight-error overlay into DIR.")
     ] = None,
 ) -> None:
     """Set runs side by side: errors, periods on target, durations, jerk, resets."""
@@ -125,9 +193,9 @@ def compare(
         _fail(*failure)
 
 
-@app.command("replay")
+@app.command("replay", cls=Command)
 def replay(
-    run_log: Annotated[Path, typer.Argument(help="Run log (.mcap) of a simulated run.")],
+    run_log: Annotated[Path, typer.Argument(metavar=RUN_LOG, help="Log of a simulated run.")],
     trust: Annotated[
         bool, typer.Option("--trust", help="Run attached FMUs even when they differ from "
                            "FMUs built here from our sources (they are native code).")
@@ -142,12 +210,29 @@ def replay(
         _fail(*failure)
 
 
+@app.command("completion", cls=Command)
+def completion(
+    shell: Annotated[str, typer.Argument(metavar="SHELL", help=f"One of {', '.join(SHELLS)}.")],
+) -> None:
+    """Print the completion script of a shell (bash, zsh, fish).
+
+    Put `eval "$(excosim completion bash)"` in ~/.bashrc (zsh: the same in ~/.zshrc; fish:
+    `excosim completion fish | source` in ~/.config/fish/config.fish).
+    """
+    if shell not in SHELLS:
+        _fail(f"completion: unknown shell {shell!r}; known: {', '.join(SHELLS)}", 2)
+    print(completion_script(shell))
+
+
 def main() -> None:
     """Console-script entry point."""
+    enable_completion()
     try:
-        app()
-    except KeyboardInterrupt:
-        _err.print("excosim: interrupted")
+        # The name, not argv[0]: `python -c`/`-m` would show up in usage lines and would change
+        # the variable the completion scripts set.
+        app(prog_name=PROG)
+    except KeyboardInterrupt:  # outside a command (typer turns one inside into exit 130)
+        fail("interrupted")
         sys.exit(130)
 
 

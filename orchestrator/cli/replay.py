@@ -10,15 +10,15 @@ scenario this version no longer accepts).
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
-from rich import box
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-from rich.table import Table
+from rich.text import Text
 
+from orchestrator.cli import tables
+from orchestrator.cli.conventions import count
 from orchestrator.review.replay import ReplayReport
 
 
@@ -55,9 +55,8 @@ def replay(path: Path, trust: bool, as_json: bool) -> tuple[str, int] | None:
     if as_json:
         print(json.dumps(report.as_dict(), allow_nan=False))
     else:
-        # Piped output has no terminal width; rich would assume 80 columns and cut the table.
-        out = Console(highlight=False, width=None if sys.stdout.isatty() else 120)
-        out.print(replay_table(report))
+        out = tables.console()
+        tables.show(out, replay_grid(report))
         out.print(summary_line(report), markup=False, soft_wrap=True)
     difference = report.first_difference()
     if difference is not None:
@@ -69,23 +68,21 @@ def _amount(value: float | None, digits: str) -> str:
     return "-" if value is None else format(value, digits)
 
 
-def replay_table(report: ReplayReport) -> Table:
-    """A rich table, one row per period: k, mass logged and replayed, the absolute
-    differences of mass, deepest point D (larger of y and z) and duration, match."""
-    table = Table(title=f"Replay of {report.path.name} (tolerance {report.tolerance:g})",
-                  box=box.SIMPLE_HEAD,
-                  caption="|d D|: the larger of |d y_D| and |d z_D|; - : no such period")
-    for header in ("k", "mass logged kg", "mass replayed kg", "|d mass| kg", "|d D| m",
-                   "|d duration| s", "match"):
-        table.add_column(header, justify="right",
-                         min_width=max(len(word) for word in header.split()))
-    for p in report.periods:
-        table.add_row(str(p.k), _amount(p.mass_kg_logged, ".6f"),
-                      _amount(p.mass_kg_replayed, ".6f"), _amount(p.abs_diff_mass_kg, ".2g"),
-                      _amount(p.abs_diff_deepest_point_m, ".2g"),
-                      _amount(p.abs_diff_duration_s, ".2g"),
-                      "[green]yes[/]" if p.matches else "[red]no[/]")
-    return table
+def replay_grid(report: ReplayReport) -> tables.Grid:
+    """One row per period: k, mass logged and replayed, the absolute differences of mass,
+    deepest point D (larger of y and z) and duration, match."""
+    c = tables.Column
+    columns = [c("k"), c("mass logged", "kg"), c("mass replayed", "kg"), c("|d mass|", "kg"),
+               c("|d D|", "m"), c("|d duration|", "s"), c("match")]
+    rows: list[list[str | Text]] = [
+        [str(p.k), _amount(p.mass_kg_logged, ".6f"), _amount(p.mass_kg_replayed, ".6f"),
+         _amount(p.abs_diff_mass_kg, ".2g"), _amount(p.abs_diff_deepest_point_m, ".2g"),
+         _amount(p.abs_diff_duration_s, ".2g"),
+         Text("yes", style="green") if p.matches else Text("no", style="red")]
+        for p in report.periods]
+    return tables.Grid(f"Replay of {report.path.name} (tolerance {report.tolerance:g})",
+                       columns, rows, heading="period {}",
+                       caption="|d D|: the larger of |d y_D| and |d z_D|; - : no such period")
 
 
 def summary_line(report: ReplayReport) -> str:
@@ -101,6 +98,5 @@ def summary_line(report: ReplayReport) -> str:
     else:
         how = "killed" if report.logged_termination is None else "interrupted"
         ending = f"; the logged run was {how}: its complete periods were replayed"
-    count = len(report.periods)
-    return (f"replay {verdict} the log: {count} period{'' if count == 1 else 's'}, {largest} "
+    return (f"replay {verdict} the log: {count(len(report.periods), 'period')}, {largest} "
             f"(tolerance {report.tolerance:g}){ending}; FMUs: {', '.join(trusted)}")

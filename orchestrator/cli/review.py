@@ -1,59 +1,78 @@
 """`excosim review` and `excosim compare`: read run logs and print what a person or a script needs.
 
 Each command returns None on success or (one-line message, exit status): 2 for a file that is not
-a readable excosim run log or an option that does not fit it (e.g. --period beyond the run).
+a readable excosim run log or an option that does not fit it (e.g. --period beyond the run, a
+--csv-channels topic the file lacks). Every check comes before anything is written.
 """
 
 from __future__ import annotations
 
 import json
 import sys
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from rich import box
-from rich.console import Console
-from rich.table import Table
+from rich.text import Text
 
-from orchestrator.cli.run import period_table
+from orchestrator.cli import export, tables
+from orchestrator.cli.conventions import count
+from orchestrator.cli.run import period_grid
 from orchestrator.review import summary as review
 from orchestrator.runlog import RunLogError
 
 
-def _console() -> Console:
-    # Piped output has no terminal width; rich would assume 80 columns and cut the table.
-    return Console(highlight=False, width=None if sys.stdout.isatty() else 120)
+@dataclass
+class CsvRequest:
+    """What `review` writes as CSV: the period table to `periods` (None: not), the channels
+    `topics` (TOPIC[,TOPIC] items) into `folder`."""
+
+    periods: Path | None = None
+    topics: list[str] = field(default_factory=list)
+    folder: Path = Path(".")
 
 
-def review_run(path: Path, as_json: bool, plots: Path | None,
-               period: int) -> tuple[str, int] | None:
+def review_run(path: Path, as_json: bool, plots: Path | None, period: int,
+               csv: CsvRequest | None = None) -> tuple[str, int] | None:
     """Print the summary and period table of the run log at `path` (or one JSON object);
-    with `plots`, write the figures there for period `period`."""
+    with `plots`, write the figures there for period `period`; with `csv`, write CSV files.
+    The paths written go to stdout (to stderr with --json, which keeps stdout one object)."""
     from orchestrator.review.plots import PLOT_TOPICS, write_plots
 
+    csv = csv or CsvRequest()
+    wanted = export.topics(csv.topics)
     try:
         run = review.load(path, PLOT_TOPICS if plots is not None else ())
-    except RunLogError as error:
+        export.check_topics(run, wanted)
+        channels = export.read_channels(path, wanted) if wanted else None
+    except (RunLogError, export.ExportError) as error:
         return str(error), 2
     if plots is not None and not 1 <= period <= len(run.periods):
-        held = f"periods 1-{len(run.periods)}" if run.periods else "no complete period"
+        held = {0: "no complete period", 1: "period 1 only"}.get(
+            len(run.periods), f"periods 1-{len(run.periods)}")
         return f"--period {period}: {path} holds {held}", 2
     data = review.summary(run)
     if as_json:
         print(json.dumps(data))
     else:
-        out = _console()
+        out = tables.console()
         out.print(f"{data['scenario']} ({data['plant']} plant): {data['description']}",
                   markup=False, soft_wrap=True)
         out.print(f"target {data['target_mass_kg']:g} kg; {review.ending(data)}",
                   markup=False, soft_wrap=True)
-        out.print(period_table(run.periods, data["target_mass_kg"]))
+        tables.show(out, period_grid(run.periods, data["target_mass_kg"]))
         out.print(_figures_line(data["figures"]), markup=False, soft_wrap=True)
+    written: list[Path] = []
+    try:
+        written += export.write(run, csv.periods, channels, wanted, Path(csv.folder))
+    except OSError as error:
+        return f"--csv: cannot write: {error.strerror or error}", 2
     if plots is not None:
         try:
-            written = write_plots(run, plots, period)
+            written += write_plots(run, plots, period)
         except OSError as error:
             return f"--plots {plots}: cannot write the figures: {error.strerror or error}", 2
+    if written:
         print("\n".join(str(p) for p in written), file=sys.stderr if as_json else sys.stdout)
     return None
 
@@ -63,13 +82,30 @@ def _figures_line(figures: dict[str, Any]) -> str:
         return "no period after the first: no error figures"
     return (f"after period 1: mean |error| {figures['mean_abs_error_kg']:.2f} kg, max "
             f"{figures['max_abs_error_kg']:.2f} kg, within ±{figures['band_kg']:g} kg "
-            f"{figures['within_band']}/{figures['counted']}; resets {figures['resets']}")
+            f"{figures['within_band']}/{figures['counted']}; "
+            f"{count(figures['resets'], 'reset')}")
 
 
-def _label(paths: list[Path]) -> list[str]:
-    """Short, distinct names for the runs: file stems, or whole paths when stems repeat."""
-    stems = [p.stem for p in paths]
-    return stems if len(set(stems)) == len(stems) else [str(p) for p in paths]
+def labels(paths: list[Path]) -> list[str]:
+    """Short, distinct names for the runs: file stems; runs whose stems clash get the folders
+    that tell them apart (x/a/runs/run and x/b/runs/run: a/run, b/run), not their whole paths.
+    The JSON of `compare` has each run's path."""
+    resolved = [Path(p).resolve() for p in paths]
+    names = [p.stem for p in resolved]
+    for stem in {n for n in names if names.count(n) > 1}:
+        group = [i for i, n in enumerate(names) if n == stem]
+        parents = [resolved[i].parent.parts for i in group]
+        # Folders the whole group shares, outermost and innermost, say nothing: drop them.
+        lead = 0
+        while all(len(p) > lead for p in parents) and len({p[lead] for p in parents}) == 1:
+            lead += 1
+        rests = [p[lead:] for p in parents]
+        tail = 0
+        while all(len(r) > tail for r in rests) and len({r[-1 - tail] for r in rests}) == 1:
+            tail += 1
+        for i, rest in zip(group, rests, strict=True):
+            names[i] = "/".join([*rest[:len(rest) - tail], stem])
+    return names if len(set(names)) == len(names) else [str(p) for p in paths]
 
 
 def compare_runs(paths: list[Path], as_json: bool,
@@ -83,25 +119,25 @@ def compare_runs(paths: list[Path], as_json: bool,
             runs.append(review.load(path))
         except RunLogError as error:
             return str(error), 2
-    labels = _label(paths)
+    names = labels(paths)
     summaries = [review.summary(run) for run in runs]
     if as_json:
         rows = []
-        for label, data in zip(labels, summaries, strict=True):
+        for label, data in zip(names, summaries, strict=True):
             row = {"label": label, **data}
             row["errors_kg"] = [r["error_kg"] for r in data["periods"]]
             del row["periods"]
             rows.append(row)
         print(json.dumps({"runs": rows}))
     else:
-        _console().print(_compare_table(labels, summaries))
+        tables.show(tables.console(), compare_grid(names, summaries))
     if plots is not None:
         from orchestrator.review.plots import plot_error_overlay, save_figure
 
         try:
             Path(plots).mkdir(parents=True, exist_ok=True)
-            written = save_figure(plot_error_overlay(runs, labels),
-                            Path(plots) / "weight_error_compare.png")
+            written = save_figure(plot_error_overlay(runs, names),
+                                  Path(plots) / "weight_error_compare.png")
         except OSError as error:
             return f"--plots {plots}: cannot write the figure: {error.strerror or error}", 2
         print(written, file=sys.stderr if as_json else sys.stdout)
@@ -112,23 +148,32 @@ def _number(value: float | None, digits: int = 2) -> str:
     return "–" if value is None else f"{value:.{digits}f}"
 
 
-def _compare_table(labels: list[str], summaries: list[dict[str, Any]]) -> Table:
-    table = Table(title="Runs side by side", box=box.SIMPLE_HEAD,
-                  caption="errors after period 1; in band: periods 2.. within ±10 % of m* "
-                  "(the paper's ±3 kg at 30 kg); duration: planned trajectory per period; peak "
-                  "jerk: largest |jerk| of any joint in any period")
-    for header in ("run", "scenario", "plant", "m* kg", "periods", "mean |err| kg",
-                   "max |err| kg", "in band", "mean duration s", "peak jerk °/s³",
-                   "resets", "ended"):
-        left = header in ("run", "scenario", "ended")
-        table.add_column(header, justify="left" if left else "right",
-                         no_wrap=left or header == "in band")
-    for label, data in zip(labels, summaries, strict=True):
+def ended(data: dict[str, Any]) -> str:
+    """How a run ended, in a word or two (the compare table's `ended` column)."""
+    if data["termination"] is None:
+        return "killed" if data["truncated"] else "unfinished"
+    if data["termination"] == "error" and data["message"] == "interrupted":
+        return "interrupted"
+    return {"periods": "all periods dug", "workspace_limit": "workspace limit",
+            "error": "failed"}.get(data["termination"], data["termination"])
+
+
+def compare_grid(names: list[str], summaries: list[dict[str, Any]]) -> tables.Grid:
+    """One row per run: the figures of `orchestrator.review.summary.run_figures`."""
+    c = tables.Column
+    columns = [c("run", left=True), c("scenario", left=True), c("plant", left=True),
+               c("m*", "kg"), c("periods"), c("mean |err|", "kg"), c("max |err|", "kg"),
+               c("in band"), c("mean duration", "s"), c("peak jerk", "°/s³"), c("resets"),
+               c("ended", left=True)]
+    rows: list[list[str | Text]] = []
+    for label, data in zip(names, summaries, strict=True):
         f = data["figures"]
         within = f"{f['within_band']}/{f['counted']} (±{f['band_kg']:g})" if f["counted"] else "–"
-        ending = data["termination"] or ("killed" if data["truncated"] else "unfinished")
-        table.add_row(label, data["scenario"], data["plant"], f"{data['target_mass_kg']:g}",
-                      str(f["periods"]), _number(f["mean_abs_error_kg"]),
-                      _number(f["max_abs_error_kg"]), within, _number(f["mean_duration_s"]),
-                      _number(f["peak_jerk_deg_s3"], 1), str(f["resets"]), ending)
-    return table
+        rows.append([label, data["scenario"], data["plant"], f"{data['target_mass_kg']:g}",
+                     str(f["periods"]), _number(f["mean_abs_error_kg"]),
+                     _number(f["max_abs_error_kg"]), within, _number(f["mean_duration_s"]),
+                     _number(f["peak_jerk_deg_s3"], 1), str(f["resets"]), ended(data)])
+    return tables.Grid("Runs side by side", columns, rows,
+                       caption="errors after period 1; in band: periods 2.. within ±10 % of m* "
+                       "(the paper's ±3 kg at 30 kg); duration: planned trajectory per period; "
+                       "peak jerk: largest |jerk| of any joint in any period")

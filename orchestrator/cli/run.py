@@ -1,37 +1,63 @@
-"""`excosim run`: load a scenario, run its campaign with a progress bar, print a table per period.
+"""`excosim run`: load a scenario, run its campaign with a progress bar, print a table per period
+(or one JSON object with --json, or nothing with --quiet).
 
 Exit status (set by the caller from the returned failure): 0 when the campaign ends by its period
 count or at the workspace limit; 2 for a user's mistake (scenario, --set, output path); 1 for a
-runtime failure, whose MCAP log stays readable up to the last finished period.
+runtime failure, whose MCAP log stays readable up to the last finished period; 130 for Ctrl-C,
+which closes the log after the last finished period.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import re
-import sys
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from rich import box
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-from rich.table import Table
+from rich.text import Text
 
-from orchestrator.review.summary import band_kg
+from orchestrator.cli import tables
+from orchestrator.cli.conventions import count
+from orchestrator.review.summary import band_kg, ending, run_figures
 
-
-def default_output(scenario_name: str, now: datetime | None = None) -> Path:
-    """runs/<scenario-name>-<UTC time>.mcap, the name made safe for a file name."""
-    stamp = (now or datetime.now(UTC)).strftime("%Y%m%dT%H%M%SZ")
-    safe = re.sub(r"[^A-Za-z0-9_.-]+", "-", scenario_name).strip("-.") or "run"
-    return Path("runs") / f"{safe}-{stamp}.mcap"
+RUNS = Path("runs")  # where logs go without -o, relative to the working folder
 
 
-def run(scenario_path: Path, output: Path | None, overrides: list[str]) -> tuple[str, int] | None:
+def default_name(scenario: Any, now: datetime | None = None) -> str:
+    """<scenario-name>-<UTC time to the ms>-<6 hex digits of the resolved scenario's hash>: runs
+    started in the same millisecond differ when their scenarios (e.g. --set) differ."""
+    stamp = (now or datetime.now(UTC)).strftime("%Y%m%dT%H%M%S.%f")[:-3] + "Z"
+    resolved = json.dumps(scenario.to_dict(), sort_keys=True).encode()
+    digest = hashlib.sha256(resolved).hexdigest()[:6]
+    safe = re.sub(r"[^A-Za-z0-9_.-]+", "-", scenario.name).strip("-.") or "run"
+    return f"{safe}-{stamp}-{digest}"
+
+
+def reserve_default_output(scenario: Any, now: datetime | None = None,
+                           folder: Path = RUNS) -> Path:
+    """Create an empty runs/<default_name>.mcap exclusively and return it; a name taken already
+    (the same scenario started in the same millisecond) gets -2, -3, ... OSError if the folder
+    cannot be made or written."""
+    folder.mkdir(parents=True, exist_ok=True)
+    base = default_name(scenario, now)
+    for attempt in range(1, 1000):
+        path = folder / (f"{base}.mcap" if attempt == 1 else f"{base}-{attempt}.mcap")
+        try:
+            with open(path, "x"):
+                return path
+        except FileExistsError:
+            continue
+    raise FileExistsError(f"{folder / base}.mcap and 998 variants exist")
+
+
+def run(scenario_path: Path, output: Path | None, overrides: list[str], *, as_json: bool = False,
+        quiet: bool = False, force: bool = False) -> tuple[str, int] | None:
     """Run the campaign; None on success, else (one-line message, exit status)."""
     import fmus
-    from orchestrator.campaign import run_campaign
     from orchestrator.scenario import ScenarioError, load_scenario
 
     try:
@@ -40,40 +66,89 @@ def run(scenario_path: Path, output: Path | None, overrides: list[str]) -> tuple
         return str(error), 2
     except fmus.BuildError as error:
         return str(error), 1
-    log_path = output if output is not None else default_output(scenario.name)
-    problem = _check_output(log_path)
-    if problem is not None:
-        return problem, 2
+    if output is not None:
+        problem = _check_output(output, force)
+        if problem is not None:
+            return problem, 2
+        log_path = output
+    else:
+        try:
+            log_path = reserve_default_output(scenario)
+        except OSError as error:
+            return f"cannot create a log in {RUNS}/: {error.strerror or error}", 2
+    return _dig(scenario, log_path, reserved=output is None, force=force, as_json=as_json,
+                quiet=quiet)
 
-    # Piped output has no terminal width; rich would assume 80 columns and cut the table.
-    out = Console(highlight=False, width=None if sys.stdout.isatty() else 120)
+
+def _dig(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_json: bool,
+         quiet: bool) -> tuple[str, int] | None:
+    from orchestrator.campaign import run_campaign
+
     err = Console(stderr=True, highlight=False)
+    done: list[dict[str, Any]] = []
     columns = (TextColumn("[progress.description]{task.description}"), BarColumn(),
                MofNCompleteColumn(), TimeElapsedColumn())
-    with Progress(*columns, console=err, transient=True, disable=not err.is_terminal) as bar:
-        task = bar.add_task(f"{scenario.name}: period 1", total=scenario.periods)
+    try:
+        with Progress(*columns, console=err, transient=True,
+                      disable=quiet or not err.is_terminal) as bar:
+            task = bar.add_task(f"{scenario.name}: period 1", total=scenario.periods)
 
-        def progress(record: dict[str, Any]) -> None:
-            bar.update(task, advance=1, description=f"{scenario.name}: period {record['k'] + 1}"
-                       f" (last {record['mass_kg']:.1f} kg)")
+            def progress(record: dict[str, Any]) -> None:
+                done.append(record)
+                bar.update(task, advance=1, description=f"{scenario.name}: period "
+                           f"{record['k'] + 1} (last {record['mass_kg']:.1f} kg)")
 
-        result = run_campaign(scenario, log_path=log_path, progress=progress)
-    out.print(period_table(result.records, scenario.target_mass_kg))
-    out.print(summary_line(result, scenario.target_mass_kg), markup=False, soft_wrap=True)
+            # A reserved default name is an empty file of ours: writing over it is no loss.
+            result = run_campaign(scenario, log_path=log_path, progress=progress,
+                                  overwrite=force or reserved)
+    except KeyboardInterrupt:
+        return _interrupted(log_path, len(done), scenario.periods, reserved), 130
+    except FileExistsError:  # created by someone else since _check_output looked
+        return f"output {str(log_path)!r} already exists; remove it or add --force", 2
+    except OSError as error:
+        _drop_if_empty(log_path, reserved)
+        return f"output {str(log_path)!r}: cannot write it: {error.strerror or error}", 2
+    if as_json:
+        print(json.dumps(run_json(result, log_path)))
+    elif not quiet:
+        out = tables.console()
+        tables.show(out, period_grid(result.records, scenario.target_mass_kg))
+        out.print(summary_line(result, scenario.target_mass_kg), markup=False, soft_wrap=True)
     if result.termination == "error":
-        done = len(result.records)
         return (f"run failed: {result.message} (log {log_path} is readable up to period "
-                f"{done})"), 1
+                f"{len(result.records)})"), 1
     return None
 
 
-def _check_output(path: Path) -> str | None:
+def _drop_if_empty(path: Path, reserved: bool) -> bool:
+    """Remove our reserved, still empty log file (nothing was written to it); whether we did."""
+    try:
+        if reserved and path.stat().st_size == 0:
+            path.unlink()
+            return True
+    except OSError:
+        pass
+    return False
+
+
+def _interrupted(log_path: Path, periods_done: int, planned: int, reserved: bool) -> str:
+    if _drop_if_empty(log_path, reserved) or not log_path.exists():
+        where = "no log was written"
+    elif periods_done:
+        where = f"log {log_path} is readable up to period {periods_done}"
+    else:
+        where = f"log {log_path} holds no period"
+    return f"interrupted after {periods_done} of {count(planned, 'period')}; {where}"
+
+
+def _check_output(path: Path, force: bool) -> str | None:
     if path.suffix != ".mcap":
         return f"output {str(path)!r}: expected a file name ending in .mcap"
     if path.is_dir():
         return f"output {str(path)!r} is a folder; give a file name ending in .mcap"
-    if path.exists():
-        return f"output {str(path)!r} already exists; remove it or choose another name"
+    if path.exists() and not force:
+        return (f"output {str(path)!r} already exists; remove it, choose another name or add "
+                "--force")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as error:
@@ -81,34 +156,46 @@ def _check_output(path: Path) -> str | None:
     return None
 
 
-def period_table(records: list[dict[str, Any]], target_mass_kg: float) -> Table:
-    """A rich table, one row per period: k, D, mass, error (green within the on-target band,
+def run_json(result: Any, log_path: Path) -> dict[str, Any]:
+    """The `excosim run --json` object: the keys of `excosim review --json` that a run knows
+    (scenario, plant, target_mass_kg, termination, message, path, periods, figures)."""
+    target = result.scenario.target_mass_kg
+    return {"scenario": result.scenario.name, "plant": result.scenario.plant.kind,
+            "target_mass_kg": target, "termination": result.termination,
+            "message": result.message, "path": str(log_path), "periods": result.records,
+            "figures": run_figures(result.records, band_kg(target))}
+
+
+def period_grid(records: list[dict[str, Any]], target_mass_kg: float) -> tables.Grid:
+    """One row per period: k, D, mass, error (green within the on-target band,
     `orchestrator.review.summary.band_kg`), reset, duration, peak jerk, planner."""
     band = band_kg(target_mass_kg)
-    table = Table(title=f"Digging periods (target {target_mass_kg:g} kg)", box=box.SIMPLE_HEAD,
-                  caption="duration: of the planned trajectory; peak jerk: largest |jerk| of "
-                  "the three joints; planner: optimisation wall time")
-    for header in ("k", "D (y, z) m", "mass kg", "error kg", "reset", "duration s",
-                   "peak jerk °/s³", "planner ms"):
-        table.add_column(header, justify="right", no_wrap=header.startswith("D"),
-                         min_width=max(len(word) for word in header.split()))
+    columns = [tables.Column("k"), tables.Column("D (y, z)", "m"), tables.Column("mass", "kg"),
+               tables.Column("error", "kg"), tables.Column("reset", blank="no"),
+               tables.Column("duration", "s"), tables.Column("peak jerk", "°/s³"),
+               tables.Column("planner", "ms")]
+    rows: list[list[str | Text]] = []
     for r in records:
         y, z = r["deepest_point_m"]
         error = r["error_kg"]
         style = "green" if abs(error) <= band else "yellow"
-        table.add_row(str(r["k"]), f"({y:.2f}, {z:.3f})", f"{r['mass_kg']:.2f}",
-                      f"[{style}]{error:+.2f}[/]", "yes" if r["reset"] else "",
-                      f"{r['duration_s']:.2f}", f"{max(r['max_abs_jerk_deg_s3']):.1f}",
-                      f"{r['planner_ms']:.1f}")
-    return table
+        rows.append([str(r["k"]), f"({y:.2f}, {z:.3f})", f"{r['mass_kg']:.2f}",
+                     Text(f"{error:+.2f}", style=style), "yes" if r["reset"] else "",
+                     f"{r['duration_s']:.2f}", f"{max(r['max_abs_jerk_deg_s3']):.1f}",
+                     f"{r['planner_ms']:.1f}"])
+    return tables.Grid(f"Digging periods (target {target_mass_kg:g} kg)", columns, rows,
+                       caption="duration: of the planned trajectory; peak jerk: largest |jerk| "
+                       "of the three joints; planner: optimisation wall time",
+                       heading="period {}")
 
 
-def summary_line(result, target_mass_kg: float) -> str:
-    """termination, periods dug, periods within the on-target band after period 1 (+-3 kg at
+def summary_line(result: Any, target_mass_kg: float) -> str:
+    """How the campaign ended, periods within the on-target band after period 1 (+-3 kg at
     the paper's 30 kg), log path."""
     band = band_kg(target_mass_kg)
     within, counted = result.periods_within(band, first_period=2)
     share = f"{within}/{counted} ({100.0 * within / counted:.0f} %)" if counted else "none"
     log = f"; log: {result.log_path}" if result.log_path is not None else ""
-    return (f"termination: {result.termination} ({len(result.records)} periods dug); within "
-            f"+/-{band:g} kg after period 1: {share}{log}")
+    how = ending({"periods": result.records, "finished": True, "truncated": False,
+                  "termination": result.termination, "message": result.message})
+    return f"{how}; within +/-{band:g} kg after period 1: {share}{log}"

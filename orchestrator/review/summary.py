@@ -92,15 +92,30 @@ def summary(run: RunFile) -> dict[str, Any]:
     }
 
 
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun if n == 1 else noun + 's'}"
+
+
+# The end message of a campaign stopped by Ctrl-C (orchestrator.campaign.loop.INTERRUPTED; not
+# imported: reviewing a file must not load the planner and plant).
+_INTERRUPTED = "interrupted"
+
+
 def ending(review: dict[str, Any]) -> str:
-    """One line on how the campaign ended, for a person."""
+    """One line on how the campaign ended, for a person (e.g. "dug all 20 planned periods")."""
     n = len(review["periods"])
     if not review["finished"]:
         cut = " (the file ends early)" if review["truncated"] else ""
-        return f"did not finish: the log holds {n} complete periods{cut}; a killed run?"
-    words = {"periods": "dug its planned periods", "workspace_limit": "stopped at the workspace "
-             "limit (D out of reach after a reset)", "error": "failed"}
-    line = f"{words.get(review['termination'], review['termination'])} after {n} periods"
-    if review["termination"] != "periods" and review["message"]:
-        line += f": {review['message']}"
-    return line
+        return f"did not finish: the log holds {_count(n, 'complete period')}{cut}; a killed run?"
+    termination, message = review["termination"], review["message"]
+    if termination == "periods":
+        return f"dug all {n} planned periods" if n != 1 else "dug the 1 planned period"
+    if termination == "workspace_limit":
+        # The log's message ("workspace limit after k period(s)") says no more than this.
+        return (f"stopped at the workspace limit after {_count(n, 'period')} (the next D was "
+                "out of reach after a reset)")
+    if termination == "error" and message == _INTERRUPTED:
+        return f"interrupted after {_count(n, 'period')}"
+    line = f"failed after {_count(n, 'period')}" if termination == "error" else (
+        f"ended ({termination}) after {_count(n, 'period')}")
+    return f"{line}: {message}" if message else line
