@@ -1,5 +1,7 @@
 """`repair`: a killed run's log made indexed, checked with the `mcap` package's indexed reader."""
 
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -70,3 +72,25 @@ def test_what_cannot_be_repaired_is_refused_and_nothing_is_written(three_periods
     assert existing.read_bytes() == b"keep me"
     with pytest.raises(FileExistsError):
         repair(three_periods, three_periods)
+
+
+def test_the_command_writes_the_copy_and_refuses_in_one_line(three_periods, tmp_path):
+    def excosim(*args):
+        return subprocess.run([sys.executable, "-m", "orchestrator.cli.app", *args],
+                              capture_output=True, text=True, timeout=120)
+
+    killed = cut_inside_chunk(three_periods, tmp_path / "killed.mcap")
+    done = excosim("log", "repair", str(killed))
+    target = tmp_path / "killed.repaired.mcap"
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith(f"wrote {target}: 2 complete periods") and \
+        "did not finish" in done.stdout
+    assert read_run(target, tolerant=False).periods == read_run(killed).periods
+    again = excosim("log", "repair", str(killed))
+    assert again.returncode == 2 and again.stderr.count("\n") == 1
+    assert "already exists" in again.stderr and "Traceback" not in again.stderr
+    text = tmp_path / "notes.mcap"
+    text.write_text("not a run log\n")
+    bad = excosim("log", "repair", str(text), "-o", str(tmp_path / "x.mcap"))
+    assert bad.returncode == 2 and "not an MCAP file" in bad.stderr
+    assert not (tmp_path / "x.mcap").exists()

@@ -37,6 +37,9 @@ app = typer.Typer(
 fmus_app = typer.Typer(cls=Group, help="Build and try the FMUs (FMI 2.0 co-simulation).",
                        no_args_is_help=True, context_settings=HELP_OPTIONS)
 app.add_typer(fmus_app, name="fmus")
+log_app = typer.Typer(cls=Group, help="Work on run logs as files.", no_args_is_help=True,
+                      context_settings=HELP_OPTIONS)
+app.add_typer(log_app, name="log")
 
 RUN_LOG = "RUN.mcap"
 
@@ -208,6 +211,39 @@ def replay(
     failure = replay_log(run_log, trust, as_json)
     if failure is not None:
         _fail(*failure)
+
+
+@log_app.command("repair", cls=Command)
+def log_repair(
+    run_log: Annotated[Path, typer.Argument(metavar=RUN_LOG, help="A run log, e.g. of a "
+                                            "killed run (it is not changed).")],
+    output: Annotated[
+        Path | None, typer.Option("-o", "--output", metavar="OUT.mcap",
+                                  help="The indexed copy (default: RUN.repaired.mcap).")
+    ] = None,
+) -> None:
+    """Copy a run log's complete periods into a new, indexed file that every MCAP reader opens.
+
+    A killed run's log has no index (MCAP writes it at the end); stream readers read it as it
+    is, indexed ones (Foxglove, Lichtblick) need the copy. The copy still says that the run did
+    not finish.
+    """
+    from orchestrator.runlog import RunLogError
+    from orchestrator.runlog.repair import repair
+
+    target = output if output is not None else run_log.with_suffix(".repaired.mcap")
+    if target.suffix != ".mcap":
+        _fail(f"output {str(target)!r}: expected a file name ending in .mcap", 2)
+    try:
+        report = repair(run_log, target)
+    except (RunLogError, FileExistsError) as error:
+        _fail(str(error).splitlines()[0] if str(error) else type(error).__name__, 2)
+    except OSError as error:
+        _fail(f"{target}: {error.strerror or error}", 2)
+    periods = f"{report.periods} complete period{'s' if report.periods != 1 else ''}"
+    state = "finished" if report.finished else "did not finish"
+    print(f"wrote {report.target}: {periods}, {report.messages} messages; the run {state}"
+          + ("; the end of the file was cut off and left out" if report.truncated else ""))
 
 
 @app.command("completion", cls=Command)

@@ -51,7 +51,12 @@ def repair(source: str | Path, target: str | Path) -> RepairReport:
     run = read_run(source)  # RunLogError for anything that is not a run log of ours
     if source.resolve() == target.resolve():
         raise FileExistsError(f"{target} is the file to repair: choose another output")
-    with open(source, "rb") as stream, open(target, "xb") as out:
+    try:
+        out = open(target, "xb")
+    except FileExistsError:
+        raise FileExistsError(f"{target} already exists; remove it or choose another name"
+                              ) from None
+    with open(source, "rb") as stream, out:
         writer = Writer(out, chunk_size=_CHUNK_BYTES, compression=CompressionType.ZSTD)
         schemas: dict[int, int] = {}
         channels: dict[int, int] = {}
