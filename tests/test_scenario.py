@@ -71,7 +71,7 @@ MISTAKES = [
     ("[plant.pile]\nfmu = \"missing/pile.fmu\"", [], "plant.pile.fmu: no such file "
      "'missing/pile.fmu' and no model of that name (models: HydraulicCylinder, Pile)"),
     ("[plant.pile.parameters]\ndensty = 1800", [],
-     "plant.pile.parameters.densty: Pile has no parameter 'densty'"),
+     "plant.pile.parameters.densty: Pile has no parameter 'densty' (closest: density)"),
     ("[plant.pile.parameters]\ndensity = \"heavy\"", [],
      "plant.pile.parameters.density: expected a number or true/false, got 'heavy'"),
     ("[plant.pile.parameters]\ndensity = true", [],
@@ -92,7 +92,7 @@ MISTAKES = [
     ("", ["periods=five"], "periods: expected an integer, got 'five'"),
     ("", ["limits.jerk_deg_s3=[1, 2]"], "limits.jerk_deg_s3: expected 3 numbers, got 2"),
     ("", ["plant.pile.parameters.densty=1800"],
-     "plant.pile.parameters.densty: Pile has no parameter 'densty'"),
+     "plant.pile.parameters.densty: Pile has no parameter 'densty' (closest: density)"),
     ("", ["periods"], "--set 'periods': expected KEY=VALUE, e.g. periods=5"),
     ("", ["=5"], "--set '=5': expected KEY=VALUE, e.g. periods=5"),
     ("", ["a..b=1"], "--set 'a..b=1': bad key 'a..b' (dotted names of letters, digits, _ and -)"),
@@ -202,9 +202,36 @@ def test_an_fmu_path_resolves_against_the_scenario_folder(tmp_path):
     scenario = load_scenario(path)
     pile = scenario.plant.pile
     assert Path(pile.fmu) == (tmp_path / "my_pile.fmu").resolve()
-    # Another FMU than the default: only the parameters given here, none of the default's.
+    # The preset gives the pile no parameters (the FMU's start values are its defaults).
     assert dict(pile.parameters) == {"width": 0.02}
     assert scenario_from_dict(scenario.to_dict()) == scenario
+
+
+def test_a_substitute_keeps_the_defaults_it_declares_and_refuses_given_ones_it_lacks(tmp_path):
+    from orchestrator.scenario.fmu_paths import resolve_fmus
+
+    shutil.copy(fmus.build("HydraulicCylinder"), tmp_path / "MyCylinder.fmu")
+    plant = load_scenario(_write(tmp_path, "")).to_dict()["plant"]
+    plant["boom"] = {"fmu": "MyCylinder.fmu", "ports": {},
+                     "parameters": {**plant["boom"]["parameters"], "not_a_variable": 1.0,
+                                    "mass": "heavy"}}
+    kept = resolve_fmus(plant, "s.toml", tmp_path, {role: set() for role in plant
+                                                     if role in ("boom", "stick", "bucket",
+                                                                 "pile")})
+    # Defaults the FMU does not declare, or of another type, are not its: dropped.
+    assert "not_a_variable" not in kept["boom"]["parameters"]
+    assert "mass" not in kept["boom"]["parameters"]
+    assert kept["boom"]["parameters"]["bore"] == plant["boom"]["parameters"]["bore"]
+    assert len(kept["boom"]["parameters"]) == len(plant["boom"]["parameters"]) - 2 > 10
+    with pytest.raises(ScenarioError) as refused:
+        resolve_fmus(plant, "s.toml", tmp_path, {"boom": {"not_a_variable"}, "stick": set(),
+                                                  "bucket": set(), "pile": set()})
+    assert str(refused.value).startswith("s.toml: plant.boom.parameters.not_a_variable: "
+                                         "HydraulicCylinder has no parameter 'not_a_variable'")
+    typo = _write(tmp_path, '[plant.boom]\nfmu = "MyCylinder.fmu"\n'
+                  "[plant.boom.parameters]\nq_rate = 0.004\n", "typo.toml")
+    with pytest.raises(ScenarioError, match=r"has no parameter 'q_rate' \(closest: q_rated"):
+        load_scenario(typo)
 
 
 def test_a_file_that_is_not_an_fmu_is_named(tmp_path):

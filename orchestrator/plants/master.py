@@ -88,12 +88,25 @@ def check_component(component: str, role: str, spec: FmuSpec, description) -> di
     return ports
 
 
+def _closest(name: str, candidates: list[str]) -> str:
+    """' (closest: a, b, c)': the candidates nearest to a misspelt name, for the message."""
+    import difflib
+
+    near = difflib.get_close_matches(name, candidates, n=3, cutoff=0.5)
+    if not near:  # nothing alike: the lower-case containment catches 'Density' vs 'rho_density'
+        near = [c for c in candidates if name.lower() in c.lower() or c.lower() in name.lower()]
+    return f" (closest: {', '.join(near[:3])})" if near else ""
+
+
 def _check_settable(component, description, variables, name, port) -> None:
     what = f"role {port!r} maps to variable {name!r}" if port else f"parameter {name!r}"
     variable = variables.get(name)
     if variable is None:
+        hint = _closest(name, [v.name for v in variables.values()
+                               if v.causality in _SETTABLE and v.variability != "constant"])
         raise ValueError(f"{component}: {what}, which {description.modelName} does not have"
-                         if port else f"{component}: {description.modelName} has no {what}")
+                         f"{hint}" if port else
+                         f"{component}: {description.modelName} has no {what}{hint}")
     if variable.causality not in _SETTABLE or variable.variability == "constant":
         raise ValueError(f"{component}: {what} has causality {variable.causality} in "
                          f"{description.modelName}; only parameters and inputs can be set")

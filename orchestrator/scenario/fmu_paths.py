@@ -23,9 +23,15 @@ _ROLE_OF = {"boom": "cylinder", "stick": "cylinder", "bucket": "cylinder", "pile
 _PORT_IN_MESSAGE = re.compile(r"role '([^']+)'")
 
 
-def resolve_fmus(plant: dict[str, Any], source: str, base_dir: Path) -> dict[str, Any]:
+def resolve_fmus(plant: dict[str, Any], source: str, base_dir: Path,
+                 given: dict[str, set[str]] | None = None) -> dict[str, Any]:
     """A copy of the resolved [plant] table with every `fmu` found; ScenarioError names the
-    first wrong file, parameter or port."""
+    first wrong file, parameter or port.
+
+    given: role -> the parameters the scenario itself sets; every other parameter (a preset
+    default) is kept only where the FMU declares a settable variable of that name and type, so
+    that swapping in a copy of a default FMU, or one with the same parameter names, keeps the
+    defaults. None: every parameter counts as given."""
     import fmus
 
     plant = copy.deepcopy(plant)
@@ -47,6 +53,11 @@ def resolve_fmus(plant: dict[str, Any], source: str, base_dir: Path) -> dict[str
             field = f"{where}.ports.{port.group(1)}" if port else f"{where}.fmu"
             raise ScenarioError(source, field, _without_component(error, component)) from None
         variables = {v.name: v for v in description.modelVariables}
+        if given is not None:
+            table["parameters"] = {
+                name: value for name, value in table["parameters"].items()
+                if name in given[component] or _fits(variables.get(name), value)}
+            spec = FmuSpec(table["fmu"], table["parameters"], table["ports"])
         for name, value in spec.parameters.items():
             field = f"{where}.parameters.{name}"
             try:
@@ -71,12 +82,22 @@ def _without_component(error: ValueError, component: str) -> str:
     return str(error).removeprefix(f"{component}: ")
 
 
-def _check_type(variable, model: str, value: Any, source: str, field: str) -> None:
+def _fits(variable, value: Any) -> bool:
+    """A preset default can be kept for `variable`: a settable variable of the value's type."""
+    if variable is None or variable.causality not in ("parameter", "input") \
+            or variable.variability == "constant":
+        return False
+    return _type_fits(variable.type, value)
 
+
+def _type_fits(kind: str, value: Any) -> bool:
     number = isinstance(value, int | float) and not isinstance(value, bool)
-    fits = {"Real": number and math.isfinite(value),
+    return {"Real": number and math.isfinite(value),
             "Integer": isinstance(value, int) and not isinstance(value, bool),
-            "Boolean": isinstance(value, bool)}.get(variable.type, False)
-    if not fits:
+            "Boolean": isinstance(value, bool)}.get(kind, False)
+
+
+def _check_type(variable, model: str, value: Any, source: str, field: str) -> None:
+    if not _type_fits(variable.type, value):
         raise ScenarioError(source, field, f"{model}.{variable.name} is a {variable.type}, "
                             f"got {value!r}")

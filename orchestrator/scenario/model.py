@@ -5,8 +5,9 @@ and the tables [machine], [path], [limits], [trajectory], [adaptation], [plant] 
 [plant.boom], [plant.stick], [plant.bucket], [plant.pile] (see scenarios/paper-2020.toml, which
 sets and explains every key). Units are in the key names: `_m`, `_deg`, `_deg_s`, `_kg`, `_s`.
 Anything left out takes the machine preset's default (`preset_defaults`); `name` defaults to the
-file's stem. An FMU table that names another FMU than the default starts without the default's
-parameters and ports (they belong to the default's variables).
+file's stem. An FMU table that names another FMU than the default keeps the default's parameters
+that the new FMU declares under the same names (the others, and the port map, belong to the
+default's variables); the parameters the table gives must all be the new FMU's.
 
     scenario = load_scenario("scenarios/paper-2020.toml", ["periods=5"])
     scenario.to_dict()                    # the resolved scenario as plain data (TOML-shaped)
@@ -224,21 +225,35 @@ def scenario_from_dict(data: Mapping[str, Any], *, source: str = "scenario",
     scenario = _validate(merged, source)
     if check_fmus:
         resolved = resolve_fmus(scenario.to_dict()["plant"], source,
-                                Path(base_dir) if base_dir is not None else Path.cwd())
+                                Path(base_dir) if base_dir is not None else Path.cwd(),
+                                _given_parameters(data))
         scenario = _validate({**scenario.to_dict(), "plant": resolved}, source)
     _check_first_period_reachable(scenario, source)
     return scenario
 
 
+def _given_parameters(data: Mapping[str, Any]) -> dict[str, set[str]]:
+    """role -> names of the FMU parameters the scenario itself sets (not the preset)."""
+    plant = data.get("plant")
+    given: dict[str, set[str]] = {}
+    for role in PLANT_ROLES:
+        table = plant.get(role) if isinstance(plant, Mapping) else None
+        parameters = table.get("parameters") if isinstance(table, Mapping) else None
+        given[role] = set(parameters) if isinstance(parameters, Mapping) else set()
+    return given
+
+
 def _merge(base: Mapping[str, Any], override: Mapping[str, Any], where: tuple) -> dict:
-    """`override` deep-merged over `base`; an FMU table naming another FMU drops base's."""
+    """`override` deep-merged over `base`. An FMU table naming another FMU keeps base's
+    parameters (resolve_fmus keeps those the new FMU declares) but not its port map (names of
+    the default FMU's variables)."""
     merged = dict(base)
     for key, value in override.items():
         below = base.get(key)
         if isinstance(value, Mapping) and isinstance(below, Mapping):
             if where == ("plant",) and key in PLANT_ROLES and value.get("fmu", below.get("fmu")) \
                     != below.get("fmu"):
-                below = {}
+                below = {"parameters": dict(below.get("parameters", {}))}
             merged[key] = _merge(below, value, (*where, key))
         else:
             merged[key] = value

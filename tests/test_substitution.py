@@ -1,0 +1,58 @@
+"""Plant-model substitution: another FMU in a role digs like the default when it is the same
+model, and a mistake in a substitution is one line before anything runs."""
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import fmus
+from orchestrator.campaign import run_campaign
+from orchestrator.scenario import ScenarioError, load_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+PAPER = ROOT / "scenarios" / "paper-2020.toml"
+
+
+@pytest.fixture(scope="module")
+def copies(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("substitutes")
+    shutil.copy(fmus.build("HydraulicCylinder"), folder / "MyCylinder.fmu")
+    shutil.copy(fmus.build("Pile"), folder / "MyPile.fmu")
+    return folder
+
+
+def test_a_byte_identical_copy_substitutes_with_bit_identical_masses(copies):
+    overrides = ["periods=2", f"plant.boom.fmu={copies / 'MyCylinder.fmu'}",
+                 f"plant.pile.fmu={copies / 'MyPile.fmu'}"]
+    default = load_scenario(PAPER, ["periods=2"])
+    swapped = load_scenario(PAPER, overrides)
+    # Swapping only `fmu` keeps the role's parameters (the preset's and the file's).
+    assert swapped.plant.boom.parameters == default.plant.boom.parameters
+    assert swapped.plant.pile.parameters == default.plant.pile.parameters
+    masses = [[r["mass_kg"] for r in run_campaign(s).records] for s in (default, swapped)]
+    assert masses[0] == masses[1] and len(masses[0]) == 2
+
+
+def test_a_misspelt_parameter_of_a_substitute_names_the_fmu_and_the_closest(copies):
+    with pytest.raises(ScenarioError) as error:
+        load_scenario(PAPER, [f"plant.stick.fmu={copies / 'MyCylinder.fmu'}",
+                              "plant.stick.parameters.V_dead_b=2e-4"])
+    message = str(error.value)
+    assert message.startswith("paper-2020.toml: plant.stick.parameters.V_dead_b: "
+                              "HydraulicCylinder has no parameter 'V_dead_b' (closest: ")
+    assert "V_dead_B" in message and "\n" not in message
+
+
+def test_the_cli_refuses_it_in_one_line_with_exit_2_before_any_log(copies, tmp_path):
+    log = tmp_path / "never.mcap"
+    done = subprocess.run(
+        [sys.executable, "-m", "orchestrator.cli.app", "run", str(PAPER), "-o", str(log),
+         "--set", f"plant.boom.fmu={copies / 'MyCylinder.fmu'}",
+         "--set", "plant.boom.parameters.bor=0.2"],
+        capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert "has no parameter 'bor' (closest: bore" in done.stderr
+    assert not log.exists()
