@@ -88,7 +88,8 @@ def open_run_log(scenario: Scenario, log_path: str | Path, overwrite: bool = Fal
                   scenario_text=scenario_source_text(scenario), scenario_name=scenario.name,
                   fmus=fmus, plant_kind=scenario.plant.kind,
                   target_mass_kg=scenario.target_mass_kg, geometry=scenario.geometry(),
-                  sample_rate_hz=scenario.log.sample_rate_hz, overwrite=overwrite)
+                  sample_rate_hz=scenario.log.sample_rate_hz, overrides=scenario.overrides,
+                  overwrite=overwrite)
 
 
 def scenario_source_text(scenario: Scenario) -> str:

@@ -60,6 +60,8 @@ def review_run(path: Path, as_json: bool, plots: Path | None, period: int,
                   markup=False, soft_wrap=True)
         out.print(f"target {data['target_mass_kg']:g} kg; {review.ending(data)}",
                   markup=False, soft_wrap=True)
+        for line in role_lines(data):
+            out.print(line, markup=False, soft_wrap=True)
         tables.show(out, period_grid(run.periods, data["target_mass_kg"]))
         out.print(_figures_line(data["figures"]), markup=False, soft_wrap=True)
     written: list[Path] = []
@@ -75,6 +77,19 @@ def review_run(path: Path, as_json: bool, plots: Path | None, period: int,
     if written:
         print("\n".join(str(p) for p in written), file=sys.stderr if as_json else sys.stdout)
     return None
+
+
+def role_lines(data: dict[str, Any]) -> list[str]:
+    """One line per plant role (its FMU, short hash, parameter count) and the --set items."""
+    lines = []
+    for role, table in data["roles"].items():
+        fmu = Path(str(table.get("fmu", ""))).name or table.get("file", "")
+        digest = str(table.get("sha256", ""))[:12]
+        lines.append(f"  {role}: {fmu} (sha256 {digest}), "
+                     f"{count(len(table.get('parameters', {})), 'parameter')} set")
+    if data["overrides"]:
+        lines.append("  --set " + " --set ".join(data["overrides"]))
+    return lines
 
 
 def _figures_line(figures: dict[str, Any]) -> str:
@@ -128,9 +143,11 @@ def compare_runs(paths: list[Path], as_json: bool,
             row["errors_kg"] = [r["error_kg"] for r in data["periods"]]
             del row["periods"]
             rows.append(row)
-        print(json.dumps({"runs": rows}))
+        print(json.dumps({"runs": rows, "differing_roles": review.differing_roles(summaries)}))
     else:
-        tables.show(tables.console(), compare_grid(names, summaries))
+        out = tables.console()
+        tables.show(out, compare_grid(names, summaries))
+        out.print(differing_line(summaries), markup=False, soft_wrap=True)
     if plots is not None:
         from orchestrator.review.plots import plot_error_overlay, save_figure
 
@@ -142,6 +159,15 @@ def compare_runs(paths: list[Path], as_json: bool,
             return f"--plots {plots}: cannot write the figure: {error.strerror or error}", 2
         print(written, file=sys.stderr if as_json else sys.stdout)
     return None
+
+
+def differing_line(summaries: list[dict[str, Any]]) -> str:
+    """Which plant roles differ between the runs, and in what (e.g. "boom: FMU; pile: density")."""
+    differ = review.differing_roles(summaries)
+    if not differ:
+        return "plant: the same FMUs, ports and parameters in every run"
+    return "plant roles that differ: " + "; ".join(
+        f"{role}: {', '.join(what)}" for role, what in differ.items())
 
 
 def _number(value: float | None, digits: int = 2) -> str:

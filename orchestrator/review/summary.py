@@ -7,6 +7,7 @@ the file's metadata and /period records (`orchestrator.runlog.reader`).
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 from typing import Any
@@ -68,7 +69,9 @@ def summary(run: RunFile) -> dict[str, Any]:
     termination ("periods", "workspace_limit", "error"; None when the run did not finish),
     message (the end record's line), finished, truncated (the file ends early: a killed run),
     periods (the /period records as the campaign wrote them), figures (`run_figures`),
-    versions (package versions the run used), fmus (component -> sha256).
+    versions (package versions the run used), fmus (component -> sha256), roles (component ->
+    {"fmu", "file", "sha256", "parameters", "ports"}: which model filled each role), overrides
+    (the `--set` items applied to the scenario file).
     """
     description = run.metadata["excosim.run"]
     try:
@@ -89,7 +92,65 @@ def summary(run: RunFile) -> dict[str, Any]:
         "figures": run_figures(run.periods, band_kg(target_mass_kg(run))),
         "versions": dict(run.metadata.get("excosim.versions", {})),
         "fmus": dict(run.metadata.get("excosim.fmus", {})),
+        "roles": roles(run),
+        "overrides": _json_list(description.get("overrides", "[]")),
     }
+
+
+def _json_list(text: str) -> list:
+    try:
+        value = json.loads(text)
+    except ValueError:
+        return []
+    return value if isinstance(value, list) else []
+
+
+def roles(run: RunFile) -> dict[str, dict[str, Any]]:
+    """component -> {"fmu", "file", "sha256", "parameters", "ports"} from the log's
+    `excosim.roles` record, or for logs written before it, from the scenario and FMU hashes."""
+    out: dict[str, dict[str, Any]] = {}
+    for role, text in run.metadata.get("excosim.roles", {}).items():
+        try:
+            value = json.loads(text)
+        except ValueError:
+            continue
+        if isinstance(value, dict):
+            out[role] = value
+    if out:
+        return out
+    try:
+        plant = run.scenario.get("plant", {})
+    except (KeyError, ValueError):
+        plant = {}
+    for role, digest in run.metadata.get("excosim.fmus", {}).items():
+        table = plant.get(role, {}) if isinstance(plant, dict) else {}
+        table = table if isinstance(table, dict) else {}
+        out[role] = {"fmu": table.get("fmu", ""), "file": "", "sha256": digest,
+                     "parameters": table.get("parameters", {}), "ports": table.get("ports", {})}
+    return out
+
+
+def differing_roles(reviews: list[dict[str, Any]]) -> dict[str, list[str]]:
+    """component -> what differs in it between the runs: "FMU" (another model: its sha256),
+    "FMU name (same content)", "ports", or the names of the parameters whose values differ; only
+    roles that differ."""
+    out: dict[str, list[str]] = {}
+    names = sorted({role for review in reviews for role in review["roles"]})
+    for role in names:
+        tables = [review["roles"].get(role, {}) for review in reviews]
+        what = []
+        if len({t.get("sha256") for t in tables}) > 1:
+            what.append("FMU")
+        elif len({Path(str(t.get("fmu", ""))).name for t in tables}) > 1:
+            what.append("FMU name (same content)")
+        if len({json.dumps(t.get("ports", {}), sort_keys=True) for t in tables}) > 1:
+            what.append("ports")
+        keys = sorted({k for t in tables for k in t.get("parameters", {})})
+        what += [k for k in keys if len({json.dumps(t.get("parameters", {}).get(k))
+                                         for t in tables}) > 1]
+        if what:
+            out[role] = what
+    return out
 
 
 def _count(n: int, noun: str) -> str:

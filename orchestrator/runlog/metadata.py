@@ -81,10 +81,28 @@ def read_fmus(fmus: Mapping[str, str | Path]) -> dict[str, tuple[str, bytes]]:
     return out
 
 
+def plant_roles(scenario: Mapping, fmus: Mapping[str, tuple[str, bytes]],
+                hashes: Mapping[str, str]) -> dict[str, str]:
+    """role -> JSON {"fmu": as the scenario names it, "file", "sha256", "parameters", "ports"}
+    of every FMU role: which model filled each role, so that a review can tell substitutions
+    apart."""
+    plant = scenario.get("plant", {}) if isinstance(scenario, Mapping) else {}
+    out = {}
+    for role, (file_name, _) in fmus.items():
+        table = plant.get(role, {}) if isinstance(plant, Mapping) else {}
+        table = table if isinstance(table, Mapping) else {}
+        out[role] = to_json({"fmu": table.get("fmu", file_name), "file": file_name,
+                             "sha256": hashes[role],
+                             "parameters": table.get("parameters", {}),
+                             "ports": table.get("ports", {})}, f"role {role}")
+    return out
+
+
 def write_run_description(writer: McapChunkWriter, *, scenario_json: str, scenario_text: str,
                           scenario_name: str, fmus: dict[str, tuple[str, bytes]],
                           plant_kind: str, target_mass_kg: float,
-                          geometry: ExcavatorGeometry | None) -> None:
+                          geometry: ExcavatorGeometry | None,
+                          overrides: list[str] | None = None) -> None:
     """The metadata records and attachments a run log starts with (`orchestrator.runlog.writer`)."""
     versions = package_versions()
     scenario_file, scenario_media = scenario_attachment(scenario_text)
@@ -95,6 +113,7 @@ def write_run_description(writer: McapChunkWriter, *, scenario_json: str, scenar
         "geometry": geometry.name if geometry is not None else "",
         "time_base": "log time = campaign time in ns since the start of period 1",
         "frames": FRAMES_DOC,
+        "overrides": to_json(list(overrides or []), "overrides"),
     })
     writer.add_metadata("excosim.scenario", {"json": scenario_json})
     writer.add_metadata("excosim.versions", versions)
@@ -112,6 +131,7 @@ def write_run_description(writer: McapChunkWriter, *, scenario_json: str, scenar
             to_attach.append((attachment, data))
         names[name] = attached[digest]
     writer.add_metadata("excosim.fmus", hashes)
+    writer.add_metadata("excosim.roles", plant_roles(json.loads(scenario_json), fmus, hashes))
     writer.add_metadata("excosim.fmu_attachments", names)
     if geometry is not None:
         writer.add_metadata("excosim.geometry", {

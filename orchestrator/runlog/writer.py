@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -83,6 +83,7 @@ class RunLog:
     scenario: the resolved scenario (JSON-able dict); scenario_text: the scenario file's text;
     fmus: name -> path of every FMU used; plant_kind: "sim" or "lab"; target_mass_kg: the
     target dug mass (kg); geometry: the arm, for the 3D channels (None: no /tf, /scene/arm).
+    overrides: the `--set` items applied to the scenario file (recorded for review).
     transform_rate_hz: rate of /tf (decimated from the samples). sample_rate_hz: rate of the
     high-rate sample channels (None: every sample; see samples.decimated). fsync: also force
     each period to the disk (survives a power loss, not only a killed process; costs a disk
@@ -95,7 +96,8 @@ class RunLog:
                  scenario_name: str, fmus: Mapping[str, str | Path], plant_kind: str,
                  target_mass_kg: float, geometry: ExcavatorGeometry | None = None,
                  transform_rate_hz: float = 25.0, sample_rate_hz: float | None = None,
-                 fsync: bool = False, overwrite: bool = False) -> None:
+                 overrides: Sequence[str] = (), fsync: bool = False,
+                 overwrite: bool = False) -> None:
         if not (isinstance(target_mass_kg, int | float) and math.isfinite(target_mass_kg)):
             raise ValueError(f"target_mass_kg must be a finite number, got {target_mass_kg!r}")
         if not transform_rate_hz > 0.0:
@@ -122,7 +124,7 @@ class RunLog:
         write_run_description(
             self._writer, scenario_json=scenario_json, scenario_text=scenario_text,
             scenario_name=scenario_name, fmus=fmu_files, plant_kind=plant_kind,
-            target_mass_kg=target_mass_kg, geometry=geometry,
+            target_mass_kg=target_mass_kg, geometry=geometry, overrides=list(overrides),
         )
         self._writer.flush(fsync)
 

@@ -70,6 +70,7 @@ class Scenario(Section):
     plant: PlantSection
     log: LogSection = LogSection()
     _source_text: str | None = PrivateAttr(default=None)  # the file's text, comments and all
+    _overrides: tuple[str, ...] = PrivateAttr(default=())  # the --set items applied to it
 
     def __eq__(self, other: object) -> bool:
         """Equal settings (the source text does not count)."""
@@ -81,6 +82,11 @@ class Scenario(Section):
     def source_text(self) -> str | None:
         """The TOML text the scenario was read from (before --set overrides), if any."""
         return self._source_text
+
+    @property
+    def overrides(self) -> tuple[str, ...]:
+        """The `KEY=VALUE` overrides applied to the file's text (`--set`), in order."""
+        return self._overrides
 
     def geometry(self) -> ExcavatorGeometry:
         return presets.get(self.machine.preset)
@@ -201,6 +207,7 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (),
     scenario = scenario_from_dict(data, source=source, base_dir=path.resolve().parent,
                                   check_fmus=check_fmus)
     scenario._source_text = text
+    scenario._overrides = tuple(overrides)
     return scenario
 
 
