@@ -40,6 +40,9 @@ app.add_typer(fmus_app, name="fmus")
 log_app = typer.Typer(cls=Group, help="Work on run logs as files.", no_args_is_help=True,
                       context_settings=HELP_OPTIONS)
 app.add_typer(log_app, name="log")
+scenario_app = typer.Typer(cls=Group, help="Look at scenarios without running them.",
+                           no_args_is_help=True, context_settings=HELP_OPTIONS)
+app.add_typer(scenario_app, name="scenario")
 
 RUN_LOG = "RUN.mcap"
 
@@ -209,6 +212,24 @@ def replay(
     from orchestrator.cli.replay import replay as replay_log
 
     failure = replay_log(run_log, trust, as_json)
+    if failure is not None:
+        _fail(*failure)
+
+
+@scenario_app.command("show", cls=Command)
+def scenario_show(
+    scenario: Annotated[Path, typer.Argument(metavar="SCENARIO.toml", help="Scenario file.")],
+    overrides: Annotated[
+        list[str] | None, typer.Option("--set", metavar="KEY=VALUE",
+                                       help="Override a scenario value (repeatable).")
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+) -> None:
+    """The resolved scenario with every default, the FMU and sha256 of each plant role and the
+    servo designed for each cylinder, without running anything."""
+    from orchestrator.cli.scenario_show import show
+
+    failure = show(scenario, overrides or [], as_json)
     if failure is not None:
         _fail(*failure)
 

@@ -1,0 +1,99 @@
+"""`excosim scenario show`: the resolved scenario with every default, without running it.
+
+What a person checks before a run (and what a sweep's base looks like): every value the run
+will use, the FMU file and sha256 that fills each plant role, and each cylinder servo as it is
+designed for that FMU (python-control margins), so a substitution's effect on the servo is
+seen before anything digs.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+from typing import Any
+
+from orchestrator.cli import tables
+from orchestrator.scenario import PLANT_ROLES, Scenario, ScenarioError, load_scenario
+
+
+def flat_lines(data: Any, prefix: str = "") -> list[str]:
+    """`dotted.key = value` lines of nested plain data, values as JSON (TOML-like)."""
+    if isinstance(data, dict) and data:
+        return [line for key, value in data.items()
+                for line in flat_lines(value, f"{prefix}.{key}" if prefix else str(key))]
+    return [f"{prefix} = {json.dumps(data)}"]
+
+
+def plant_roles(scenario: Scenario) -> dict[str, dict[str, Any]]:
+    """role -> {"fmu", "file", "sha256", "parameters"} of the resolved scenario."""
+    from orchestrator.plants.master import fmu_path
+
+    out = {}
+    for role, spec in scenario.fmu_specs().items():
+        path = fmu_path(spec, role)
+        out[role] = {"fmu": spec.fmu, "file": str(path),
+                     "sha256": hashlib.sha256(Path(path).read_bytes()).hexdigest(),
+                     "parameters": dict(spec.parameters)}
+    return out
+
+
+def servo_designs(scenario: Scenario) -> dict[str, dict[str, float]]:
+    """cylinder role -> the servo designed for it (gains, margins at the design stroke), for a
+    simulated plant; empty for another plant kind."""
+    if scenario.plant.kind != "sim":
+        return {}
+    from orchestrator.campaign.loop import build_plant
+
+    plant = build_plant(scenario)
+    try:
+        return {role: {"natural_frequency_rad_s": d.natural_frequency_rad_s,
+                       "damping": d.damping, "position_gain_1_s": d.position_gain_1_s,
+                       "gain_margin_db": d.gain_margin_db,
+                       "phase_margin_deg": d.phase_margin_deg,
+                       "bandwidth_rad_s": d.bandwidth_rad_s}
+                for role, d in zip(PLANT_ROLES, plant.servo_designs, strict=False)}
+    finally:
+        plant.close()
+
+
+def show(path: Path, overrides: list[str], as_json: bool) -> tuple[str, int] | None:
+    """Print the resolved scenario at `path` with `overrides`; None, or (one line, status 2)
+    for a scenario mistake, 1 for a failure to build an FMU or design a servo."""
+    import fmus
+
+    try:
+        scenario = load_scenario(path, overrides)
+    except ScenarioError as error:
+        return str(error), 2
+    except fmus.BuildError as error:
+        return str(error), 1
+    try:
+        roles = plant_roles(scenario)
+        servos = servo_designs(scenario)
+    except (ValueError, fmus.BuildError) as error:
+        return f"{scenario.name}: {str(error).splitlines()[0]}", 1
+    data = {"scenario": scenario.to_dict(), "overrides": list(scenario.overrides),
+            "roles": roles, "servos": servos}
+    if as_json:
+        print(json.dumps(data))
+        return None
+    out = tables.console()
+    out.print(f"# {scenario.name}: every value the run uses (file, preset defaults, --set)",
+              markup=False, soft_wrap=True)
+    for line in flat_lines(data["scenario"]):
+        out.print(line, markup=False, soft_wrap=True)
+    out.print("# the FMU of each plant role", markup=False)
+    for role, table in roles.items():
+        out.print(f"{role}: {table['file']} (sha256 {table['sha256'][:12]})", markup=False,
+                  soft_wrap=True)
+    if servos:
+        out.print("# the servo of each cylinder (design stroke; python-control margins)",
+                  markup=False)
+        for role, d in servos.items():
+            out.print(f"{role}: w_h {d['natural_frequency_rad_s']:.1f} rad/s, damping "
+                      f"{d['damping']:.2f}, K_p {d['position_gain_1_s']:.2f} 1/s, gain margin "
+                      f"{d['gain_margin_db']:.1f} dB, phase margin {d['phase_margin_deg']:.1f} "
+                      f"deg, bandwidth {d['bandwidth_rad_s']:.1f} rad/s", markup=False,
+                      soft_wrap=True)
+    return None
