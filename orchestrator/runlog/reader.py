@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import io
 import json
+import stat
 import struct
 import zlib
 from collections.abc import Collection
@@ -101,11 +102,23 @@ class RunFile:
         return self.attachments[self.metadata["excosim.run"]["scenario_attachment"]].decode()
 
 
-def _decompress(compression: str, data: bytes, size: int) -> bytes:
+# A chunk may declare at most this many uncompressed bytes: a paper period is about 1 MB, a
+# 1 kHz lab period about 8 MB; a crafted chunk declaring 2^40 bytes (or a bomb that inflates a
+# few KB to GBs) is refused as damaged instead of exhausting memory and time.
+MAX_CHUNK_BYTES = 512 << 20
+
+
+def _decompress(compression: str, data: bytes, size: int) -> bytes | None:
+    """The chunk's records, or None when they would not be `size` bytes (damaged or crafted:
+    never inflated beyond the size declared)."""
+    if size > MAX_CHUNK_BYTES:
+        return None
     if compression == "zstd":
         return zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
     if compression == "lz4":
-        return lz4.frame.decompress(data)
+        decompressor = lz4.frame.LZ4FrameDecompressor()
+        out = decompressor.decompress(data, max_length=size)
+        return out if decompressor.eof else None
     if compression == "":
         return data
     raise RunLogError(f"unsupported chunk compression {compression!r}")
@@ -191,7 +204,7 @@ class _Scan:
             records = _decompress(compression, bytes(body[at + 8:at + 8 + data_length]), size)
         except (zstandard.ZstdError, RuntimeError):
             return False
-        if len(records) != size or (crc != 0 and zlib.crc32(records) != crc):
+        if records is None or len(records) != size or (crc != 0 and zlib.crc32(records) != crc):
             return False
         view = memoryview(records)
         if index is not None and self._indexed(view, index):
@@ -296,6 +309,8 @@ def read_run(path: str | Path, tolerant: bool = True, topics: Collection[str] = 
     out). A file that is not MCAP or not an excosim run log raises RunLogError."""
     path = Path(path)
     try:
+        if not stat.S_ISREG(path.stat().st_mode):  # a FIFO or a device would block or not end
+            raise RunLogError(f"{path} is not a regular file (a folder, FIFO or device)")
         data = path.read_bytes()
     except OSError as exc:
         raise RunLogError(f"cannot read {path}: {exc.strerror}") from None

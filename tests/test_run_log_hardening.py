@@ -1,0 +1,65 @@
+"""Reading hostile files: no hang on a FIFO or a device, no memory blow-up from a chunk that
+claims more than it holds; the reader reports such files instead (one line)."""
+
+import os
+import struct
+import threading
+from pathlib import Path
+
+import pytest
+from run_log_files import chunks
+
+from orchestrator.campaign import run_campaign
+from orchestrator.runlog import RunLogError, read_run
+from orchestrator.runlog.reader import MAX_CHUNK_BYTES
+from orchestrator.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def two_periods(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("hostile") / "run.mcap"
+    scenario = load_scenario(ROOT / "scenarios" / "paper-2020.toml", ["periods=2"])
+    assert run_campaign(scenario, log_path=path).termination == "periods"
+    return path
+
+
+def read_within(path: Path, seconds: float = 10.0):
+    """read_run in a thread: (result or exception), failing the test if it blocks."""
+    box: list = []
+
+    def target():
+        try:
+            box.append(read_run(path))
+        except Exception as error:  # noqa: BLE001 - handed to the test
+            box.append(error)
+
+    thread = threading.Thread(target=target, daemon=True)
+    thread.start()
+    thread.join(seconds)
+    assert not thread.is_alive(), f"read_run({path}) blocked"
+    return box[0]
+
+
+def test_a_fifo_and_a_device_are_refused_without_blocking(tmp_path):
+    fifo = tmp_path / "pipe.mcap"
+    os.mkfifo(fifo)
+    for path in (fifo, Path("/dev/zero"), tmp_path):
+        error = read_within(path)
+        assert isinstance(error, RunLogError) and "not a regular file" in str(error)
+
+
+def test_a_chunk_claiming_too_many_bytes_ends_the_file_there(two_periods, tmp_path):
+    data = bytearray(two_periods.read_bytes())
+    second = chunks(two_periods)[1]
+    # Chunk record: opcode, length, then start, end, uncompressed size (u64 each).
+    at = second.chunk_start_offset + 1 + 8 + 8 + 8
+    assert struct.unpack_from("<Q", data, at)[0] == second.uncompressed_size
+    struct.pack_into("<Q", data, at, 1 << 40)
+    crafted = tmp_path / "crafted.mcap"
+    crafted.write_bytes(bytes(data))
+    run = read_within(crafted)
+    assert not isinstance(run, Exception), run
+    assert run.truncated and len(run.periods) == 1  # period 2's chunk is the damaged one
+    assert (1 << 40) > MAX_CHUNK_BYTES
