@@ -63,3 +63,25 @@ def test_a_chunk_claiming_too_many_bytes_ends_the_file_there(two_periods, tmp_pa
     assert not isinstance(run, Exception), run
     assert run.truncated and len(run.periods) == 1  # period 2's chunk is the damaged one
     assert (1 << 40) > MAX_CHUNK_BYTES
+
+
+def test_review_json_never_prints_a_bare_nan(two_periods, tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    data = two_periods.read_bytes()
+    # A foreign or damaged writer's NaN in a period record (JSON readers accept it, JSON
+    # writers must not pass it on); same byte length, so no record length changes.
+    old = b'"mass_kg": '
+    at = data.index(old) + len(old)
+    end = data.index(b",", at)
+    value = data[at:end]
+    crafted = data[:at] + b"NaN".ljust(len(value)) + data[end:]
+    path = tmp_path / "nan.mcap"
+    path.write_bytes(crafted)
+    done = subprocess.run([sys.executable, "-m", "orchestrator.cli.app", "review", str(path),
+                           "--json"], capture_output=True, text=True, timeout=120)
+    assert "NaN" not in done.stdout
+    if done.returncode == 0:
+        json.loads(done.stdout, parse_constant=lambda name: pytest.fail(f"bare {name}"))

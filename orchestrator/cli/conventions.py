@@ -139,3 +139,21 @@ def enable_completion() -> None:
     from typer.completion import completion_init
 
     completion_init()
+
+
+def json_text(data: Any) -> str:
+    """JSON of plain data with every NaN or infinity as null: a bare NaN is not JSON, and a
+    damaged or foreign log may hold one."""
+    import json
+    import math
+
+    def clean(value: Any) -> Any:
+        if isinstance(value, float) and not math.isfinite(value):
+            return None
+        if isinstance(value, dict):
+            return {key: clean(item) for key, item in value.items()}
+        if isinstance(value, list | tuple):
+            return [clean(item) for item in value]
+        return value
+
+    return json.dumps(clean(data), allow_nan=False)

@@ -7,7 +7,6 @@ a readable excosim run log or an option that does not fit it (e.g. --period beyo
 
 from __future__ import annotations
 
-import json
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,7 +15,7 @@ from typing import Any
 from rich.text import Text
 
 from orchestrator.cli import export, tables
-from orchestrator.cli.conventions import count
+from orchestrator.cli.conventions import count, json_text
 from orchestrator.cli.run import period_grid
 from orchestrator.review import summary as review
 from orchestrator.runlog import RunLogError
@@ -53,7 +52,7 @@ def review_run(path: Path, as_json: bool, plots: Path | None, period: int,
         return f"--period {period}: {path} holds {held}", 2
     data = review.summary(run)
     if as_json:
-        print(json.dumps(data))
+        print(json_text(data))
     else:
         out = tables.console()
         out.print(f"{data['scenario']} ({data['plant']} plant): {data['description']}",
@@ -143,7 +142,7 @@ def compare_runs(paths: list[Path], as_json: bool,
             row["errors_kg"] = [r["error_kg"] for r in data["periods"]]
             del row["periods"]
             rows.append(row)
-        print(json.dumps({"runs": rows, "differing_roles": review.differing_roles(summaries)}))
+        print(json_text({"runs": rows, "differing_roles": review.differing_roles(summaries)}))
     else:
         out = tables.console()
         tables.show(out, compare_grid(names, summaries))

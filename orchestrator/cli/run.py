@@ -21,7 +21,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.text import Text
 
 from orchestrator.cli import tables
-from orchestrator.cli.conventions import count
+from orchestrator.cli.conventions import count, json_text
 from orchestrator.review.summary import band_kg, ending, run_figures
 
 RUNS = Path("runs")  # where logs go without -o, relative to the working folder
@@ -109,7 +109,7 @@ def _dig(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_json:
         _drop_if_empty(log_path, reserved)
         return f"output {str(log_path)!r}: cannot write it: {error.strerror or error}", 2
     if as_json:
-        print(json.dumps(run_json(result, log_path)))
+        print(json_text(run_json(result, log_path)))
     elif not quiet:
         out = tables.console()
         tables.show(out, period_grid(result.records, scenario.target_mass_kg))
