@@ -1,10 +1,15 @@
-"""Compile a model folder into an FMI 2.0 Co-Simulation FMU with plain gcc, cached by content.
+"""Compile a model folder into an FMI 2.0 (or 3.0) Co-Simulation FMU with plain gcc, cached by
+content.
 
 A model folder fmus/<Model>/ holds variables.toml and the physics (model.c and any other .c/.h);
-fmus/common/ holds the shared FMI layer. The FMU goes to $EXCOSIM_FMU_DIR (default
-~/.cache/excosim/fmus/) as <Model>.fmu. Its GUID is derived from a hash of everything that
-goes into it (sources, table, flags, compiler version, FMI headers, this builder), so an FMU whose
-GUID matches the current hash is up to date and is not rebuilt.
+fmus/common/ holds the shared FMI layers (fmi2_*.c for FMI 2.0, fmi3_*.c for FMI 3.0) and
+fmus/shared/<name>/ physics that several models compile in (`shared = [...]` in [model]). The FMU
+goes to $EXCOSIM_FMU_DIR (default ~/.cache/excosim/fmus/) as <Model>.fmu, an FMI 3.0 build as
+fmi3/<Model>.fmu. Its GUID (FMI 3: instantiationToken) is derived from a hash of everything that
+goes into it (FMI version, sources, table, flags, compiler version, FMI headers, this builder), so
+an FMU whose GUID matches the current hash is up to date and is not rebuilt. Builds are
+byte-reproducible: gcc runs in the source folder on relative names (no temporary path gets into
+the binary) and the zip entries carry a fixed date.
 """
 
 from __future__ import annotations
@@ -21,15 +26,27 @@ from functools import lru_cache
 from pathlib import Path
 
 from fmus.codegen import model_description, variables_header
+from fmus.codegen3 import model_description_fmi3
 from fmus.table import TableError, read_table
 
 __all__ = [
-    "BuildError", "MODELS_DIR", "model_names", "fmu_dir", "build", "build_model", "build_all",
+    "BuildError", "MODELS_DIR", "FMI_VERSIONS", "model_names", "fmu_dir", "build", "build_model",
+    "build_all",
 ]
 
 MODELS_DIR = Path(__file__).resolve().parent
 COMMON_DIR = MODELS_DIR / "common"
-BUILDER_VERSION = "excosim-fmus-1"
+SHARED_DIR = MODELS_DIR / "shared"
+BUILDER_VERSION = "excosim-fmus-2"
+FMI_VERSIONS = (2, 3)
+# The FMI headers (from fmpy's c-code folder) each version compiles against.
+HEADERS = {
+    2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
+    3: ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h"),
+}
+# Shared-layer files that belong to the other FMI version (never compiled into this one).
+_OTHER_LAYER = {2: ("fmi3_",), 3: ("fmi2_", "instance.h")}
+ZIP_DATE = (1980, 1, 1, 0, 0, 0)  # fixed entry date: the same inputs give the same zip bytes
 CFLAGS = [
     "-std=c11", "-O2", "-fPIC", "-shared", "-fvisibility=hidden",
     # Reproducible floating point: no fused multiply-add, no fast-math reassociation.
@@ -54,13 +71,14 @@ def fmu_dir() -> Path:
     return Path(configured).expanduser() if configured else Path.home() / ".cache/excosim/fmus"
 
 
-def _fmi_headers() -> Path:
+def _fmi_headers(fmi_version: int = 2) -> Path:
     spec = importlib.util.find_spec("fmpy")
     if spec is None or spec.origin is None:
-        raise BuildError("fmpy is not installed: its FMI 2.0 headers (fmpy/c-code) are needed")
+        raise BuildError(f"fmpy is not installed: its FMI {fmi_version}.0 headers (fmpy/c-code) "
+                         "are needed")
     headers = Path(spec.origin).parent / "c-code"
-    if not (headers / "fmi2Functions.h").is_file():
-        raise BuildError(f"fmpy has no FMI 2.0 headers at {headers}")
+    if not all((headers / name).is_file() for name in HEADERS[fmi_version]):
+        raise BuildError(f"fmpy has no FMI {fmi_version}.0 headers at {headers}")
     return headers
 
 
@@ -81,12 +99,22 @@ def _gcc_version(gcc: str) -> str:
     return result.stdout
 
 
-def _sources(model_dir: Path) -> dict[str, bytes]:
-    """All C sources and headers of the model and the shared layer, by flat file name."""
+def _sources(model_dir: Path, shared: tuple[str, ...] = (),
+             fmi_version: int = 2) -> dict[str, bytes]:
+    """All C sources and headers of the model, its shared folders and the FMI layer of
+    `fmi_version`, by flat file name."""
     files: dict[str, bytes] = {}
-    for folder in (COMMON_DIR, model_dir):
+    folders = [COMMON_DIR]
+    for name in shared:
+        if not (SHARED_DIR / name).is_dir():
+            raise BuildError(f"{model_dir.name}: shared source folder '{name}' not found "
+                             f"(no {SHARED_DIR / name})")
+        folders.append(SHARED_DIR / name)
+    for folder in (*folders, model_dir):
         for path in sorted(folder.iterdir()):
             if path.suffix not in (".c", ".h") or not path.is_file():
+                continue
+            if folder == COMMON_DIR and path.name.startswith(_OTHER_LAYER[fmi_version]):
                 continue
             if path.name in files or path.name == "variables.h":
                 raise BuildError(f"{model_dir.name}: source file name '{path.name}' clashes with "
@@ -98,7 +126,7 @@ def _sources(model_dir: Path) -> dict[str, bytes]:
 
 
 def _content_hash(table_bytes: bytes, sources: dict[str, bytes], gcc_version: str,
-                  headers: Path) -> str:
+                  headers: Path, fmi_version: int = 2) -> str:
     digest = hashlib.sha256()
 
     def feed(label: str, data: bytes) -> None:
@@ -106,14 +134,16 @@ def _content_hash(table_bytes: bytes, sources: dict[str, bytes], gcc_version: st
         digest.update(data)
 
     feed("builder", BUILDER_VERSION.encode())
-    for module in ("builder.py", "codegen.py", "table.py"):  # generated code depends on these
+    feed("fmi", str(fmi_version).encode())  # an FMI 3 build never hits an FMI 2 cache entry
+    # The generated code depends on these modules.
+    for module in ("builder.py", "codegen.py", "codegen3.py", "table.py"):
         feed(module, (MODELS_DIR / module).read_bytes())
     feed("flags", " ".join(CFLAGS + LIBS).encode())
     feed("gcc", gcc_version.encode())
     feed("variables.toml", table_bytes)
     for name in sorted(sources):
         feed(name, sources[name])
-    for name in ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"):
+    for name in HEADERS[fmi_version]:
         feed(name, (headers / name).read_bytes())
     return digest.hexdigest()
 
@@ -124,15 +154,18 @@ def _guid_of(fmu: Path) -> str | None:
             text = archive.read("modelDescription.xml").decode("utf-8")
     except (OSError, KeyError, zipfile.BadZipFile):
         return None
-    start = text.find('guid="')
-    return text[start + 6:text.find('"', start + 6)] if start >= 0 else None
+    for key in ('guid="', 'instantiationToken="'):  # FMI 2 / FMI 3
+        start = text.find(key)
+        if start >= 0:
+            return text[start + len(key):text.find('"', start + len(key))]
+    return None
 
 
 def _compile(gcc: str, source_dir: Path, c_files: list[str], headers: Path, output: Path,
              model: str) -> None:
-    command = [gcc, *CFLAGS, "-I", str(source_dir), "-I", str(headers),
-               *[str(source_dir / name) for name in c_files], "-o", str(output), *LIBS]
-    result = subprocess.run(command, capture_output=True, text=True)
+    # Relative source names in the source folder: the binary holds no temporary path.
+    command = [gcc, *CFLAGS, "-I", ".", "-I", str(headers), *c_files, "-o", str(output), *LIBS]
+    result = subprocess.run(command, capture_output=True, text=True, cwd=source_dir)
     if result.returncode != 0:
         lines = [line for line in result.stderr.splitlines() if line.strip()]
         errors = [line for line in lines if "error" in line] or lines
@@ -140,8 +173,9 @@ def _compile(gcc: str, source_dir: Path, c_files: list[str], headers: Path, outp
         raise BuildError(f"{model}: gcc failed to compile the model:\n  {shown}")
 
 
-def build(name: str) -> Path:
-    """Build fmus/<name>/ into <fmu_dir()>/<name>.fmu if its content changed; return the path.
+def build(name: str, fmi_version: int = 2) -> Path:
+    """Build fmus/<name>/ into <fmu_dir()>/<name>.fmu (FMI 3.0: <fmu_dir()>/fmi3/<name>.fmu) if
+    its content changed; return the path.
 
     Raises BuildError with one clear message for a missing model, a bad variables.toml,
     a missing gcc or a compile error.
@@ -150,14 +184,16 @@ def build(name: str) -> Path:
         known = ", ".join(model_names()) or "none"
         raise BuildError(f"unknown model '{name}': no {name}/variables.toml under the fmus "
                          f"package (models: {known})")
-    return build_model(MODELS_DIR / name)
+    return build_model(MODELS_DIR / name, fmi_version)
 
 
-def build_model(model_dir: Path) -> Path:
+def build_model(model_dir: Path, fmi_version: int = 2) -> Path:
     """Build any model folder (variables.toml, model.c, ...) like `build`; return the FMU path.
 
     The folder's name is the model identifier; the shared FMI layer comes from fmus/common.
     """
+    if fmi_version not in FMI_VERSIONS:
+        raise BuildError(f"FMI version {fmi_version!r} is not supported (use 2 or 3)")
     model_dir = Path(model_dir)
     name = model_dir.name
     if not (model_dir / "variables.toml").is_file():
@@ -169,14 +205,14 @@ def build_model(model_dir: Path) -> Path:
     if table.identifier != name:
         raise BuildError(f"{name}/variables.toml: [model] identifier '{table.identifier}' "
                          f"must equal the folder name '{name}'")
-    headers = _fmi_headers()
+    headers = _fmi_headers(fmi_version)
     gcc = _gcc()
-    sources = _sources(model_dir)
+    sources = _sources(model_dir, table.shared, fmi_version)
     content = _content_hash((model_dir / "variables.toml").read_bytes(), sources,
-                            _gcc_version(gcc), headers)
+                            _gcc_version(gcc), headers, fmi_version)
     guid = "{" + str(uuid.UUID(content[:32])) + "}"
 
-    out_dir = fmu_dir()
+    out_dir = fmu_dir() if fmi_version == 2 else fmu_dir() / "fmi3"
     target = out_dir / f"{name}.fmu"
     if target.is_file() and _guid_of(target) == guid:
         return target
@@ -195,20 +231,29 @@ def build_model(model_dir: Path) -> Path:
         c_files = sorted(n for n in sources if n.endswith(".c"))
         binary = staging / f"{name}.so"
         _compile(gcc, source_dir, c_files, headers, binary, name)
-        description = model_description(table, guid, c_files, f"excosim fmus builder "
-                                         f"({BUILDER_VERSION})")
+        tool = f"excosim fmus builder ({BUILDER_VERSION})"
+        description = (model_description(table, guid, c_files, tool) if fmi_version == 2
+                       else model_description_fmi3(table, guid, c_files, tool))
+        platform = "linux64" if fmi_version == 2 else "x86_64-linux"  # FMI 3 platform tuple
         partial = staging / f"{name}.fmu"
         with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
-            archive.writestr("modelDescription.xml", description)
-            archive.write(binary, f"binaries/linux64/{name}.so")
+            _add(archive, "modelDescription.xml", description)
+            _add(archive, f"binaries/{platform}/{name}.so", binary.read_bytes())
             for path in sorted(source_dir.iterdir()):
-                archive.write(path, f"sources/{path.name}")
+                _add(archive, f"sources/{path.name}", path.read_bytes())
         os.replace(partial, target)  # atomic: readers see the old or the new FMU, never half
     return target
 
 
-def build_all() -> dict[str, Path]:
-    """Build every model folder; return {model name: FMU path}.
+def _add(archive: zipfile.ZipFile, name: str, data: bytes) -> None:
+    info = zipfile.ZipInfo(name, date_time=ZIP_DATE)
+    info.compress_type = zipfile.ZIP_DEFLATED
+    info.external_attr = 0o644 << 16  # regular file, rw-r--r--, whatever the umask
+    archive.writestr(info, data)
+
+
+def build_all(fmi_version: int = 2) -> dict[str, Path]:
+    """Build every model folder (as FMI `fmi_version`); return {model name: FMU path}.
 
     Tries every model even when one fails, then raises BuildError naming each failure.
     """
@@ -216,7 +261,7 @@ def build_all() -> dict[str, Path]:
     errors: list[str] = []
     for name in model_names():
         try:
-            built[name] = build(name)
+            built[name] = build(name, fmi_version)
         except BuildError as exc:
             errors.append(str(exc))
     if errors:

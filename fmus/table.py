@@ -15,7 +15,7 @@ from pathlib import Path
 
 __all__ = ["TableError", "Variable", "ModelTable", "read_table"]
 
-MODEL_KEYS = {"identifier", "description", "default_step_size", "default_stop_time"}
+MODEL_KEYS = {"identifier", "description", "default_step_size", "default_stop_time", "shared"}
 VARIABLE_KEYS = {
     "name", "causality", "variability", "type", "start", "unit", "description", "count",
     "min", "max",
@@ -75,6 +75,7 @@ class ModelTable:
     arrays: dict[str, tuple[int, int]]
     default_step_size: float | None
     default_stop_time: float | None
+    shared: tuple[str, ...] = ()  # source folders fmus/shared/<name>/ compiled in as well
 
     def units(self) -> list[str]:
         """Units used by the Real variables, sorted."""
@@ -108,6 +109,11 @@ def parse_table(data: dict, where: str) -> ModelTable:
     description = model.get("description", "")
     if not isinstance(description, str):
         raise TableError(f"{where} [model]: description must be a string")
+    shared = model.get("shared", [])
+    if not isinstance(shared, list) or not all(
+            isinstance(n, str) and C_IDENTIFIER.match(n) for n in shared):
+        raise TableError(f"{where} [model]: shared must be a list of folder names under "
+                         f"fmus/shared/, got {shared!r}")
     step = _positive_or_none(model, "default_step_size", f"{where} [model]")
     stop = _positive_or_none(model, "default_stop_time", f"{where} [model]")
 
@@ -136,7 +142,8 @@ def parse_table(data: dict, where: str) -> ModelTable:
                 raise TableError(f"{label}: C macro VR_{var.macro} collides with another variable")
             macros.add(var.macro)
         variables.extend(expanded)
-    return ModelTable(identifier, description, tuple(variables), arrays, step, stop)
+    return ModelTable(identifier, description, tuple(variables), arrays, step, stop,
+                      tuple(shared))
 
 
 def _check_keys(entry: dict, allowed: set[str], label: str) -> None:

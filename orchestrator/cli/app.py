@@ -75,6 +75,7 @@ def fmus_build(
         typer.Argument(metavar="MODEL", help="Models to build, e.g. HydraulicCylinder "
                        "(default: all)."),
     ] = None,
+    fmi3: Annotated[bool, typer.Option("--fmi3", help="Build FMI 3.0 co-simulation FMUs.")] = False,
 ) -> None:
     """Build FMUs from fmus/<Model>/ and print one line per FMU: name and path."""
     import fmus
@@ -85,9 +86,39 @@ def fmus_build(
             _fail(f"unknown model {name!r}; known: {', '.join(fmus.MODELS)}", 2)
     try:
         for name in wanted:
-            print(f"{name}\t{fmus.build(name)}")
+            print(f"{name}\t{fmus.build(name, fmi_version=3 if fmi3 else 2)}")
     except fmus.BuildError as exc:
         _fail(str(exc), 1)
+
+
+@fmus_app.command("info", cls=Command)
+def fmus_info(
+    target: Annotated[str, typer.Argument(metavar="FMU_OR_NAME", help="A .fmu file or one of "
+                                          "our model names.")],
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    fmi3: Annotated[bool, typer.Option("--fmi3", help="For a model name: its FMI 3.0 build.")
+                    ] = False,
+) -> None:
+    """FMI version, kind, variables, and the plant roles the FMU fills (default port map)."""
+    from orchestrator.cli.fmus_info import info_command
+
+    raise typer.Exit(info_command(target, as_json, fmi3))
+
+
+@fmus_app.command("validate", cls=Command)
+def fmus_validate(
+    target: Annotated[str, typer.Argument(metavar="FMU", help="A .fmu file or one of our model "
+                                          "names.")],
+    role: Annotated[str | None, typer.Option("--role", help="Role it must fill: cylinder or "
+                                             "pile (default: any).")] = None,
+    fmi3: Annotated[bool, typer.Option("--fmi3", help="For a model name: its FMI 3.0 build.")
+                    ] = False,
+) -> None:
+    """fmpy's validation plus the role checks: exit 0 valid, 1 problems (one per line), 2 not
+    an FMU."""
+    from orchestrator.cli.fmus_info import validate_command
+
+    raise typer.Exit(validate_command(target, role, fmi3))
 
 
 @fmus_app.command("demo", cls=Command)

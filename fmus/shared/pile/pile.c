@@ -1,0 +1,227 @@
+/*
+ * Pile mechanics shared by every pile model (fmus/Pile, fmus/PileZelenin, ...): the material a
+ * bucket digs, as a surface profile z = h(y) (profile.h) with uniform density and width (the
+ * paper's assumptions). The soil resistance law is the model's own (pile_resistance.h): this file
+ * only finds the cut depth, the rake angle and the direction. Mass is conserved: pile_mass + bucket_mass + dumped_mass stays the initial
+ * mass to round-off.
+ *
+ * One step. The tip moves on a straight line from its position at the end of the last step to
+ * the new input, in substeps of at most a quarter cell (in y and in z). Each substep:
+ *  1. Cut: every cell the tip sweeps is cut down to the tip path (never below z_floor); the cut
+ *     material enters the bucket. A vertical move sweeps no area and cuts nothing: the capacity
+ *     is filled by dragging, as a real bucket fills. When a cut would overflow `capacity`, all
+ *     cut levels of the substep rise together until exactly the free volume is removed; with a
+ *     full bucket nothing more is cut and the material stays where it is (the bucket pushes
+ *     through it and still meets the resistance below).
+ *  2. Slump: slopes steeper than repose_angle relax by conservative transfers between
+ *     neighbouring cells, iterated to convergence. While the tip is buried (below the highest
+ *     surface of its cell and the two neighbours), the two boundaries of its cell are closed:
+ *     the bucket is a wall, so the face in front of it stands until it is cut and the material
+ *     behind cannot run back under it. When the bucket leaves the material, the trench walls
+ *     slump freely (and fill the next cut: the ground's memory).
+ * After the substeps: dump > 0.5 moves the bucket content to dumped_mass.
+ *
+ * Force: the tip velocity v is the step's mean (new - old position) / h. The depth d is the
+ * surface height 1.5 cells ahead of the tip along v (the uncut face; the cell under the tip is
+ * already cut to the tip) minus tip_z, and 0 when that is negative. The rake angle beta is the
+ * angle between the tip-to-pin line (bucket_angle) and -v (90 deg: the line is normal to the
+ * motion). The model's draft H (pile_draft, pile_resistance.h) acts against the motion, ramped
+ * smoothly to zero at rest: F = -H v / sqrt(|v|^2 + force_speed_ramp^2). A force normal to the
+ * motion is left out (it does no work along the path).
+ */
+#include <math.h>
+
+#include "model.h"
+#include "profile.h"
+#include "pile_resistance.h"
+
+#define PI 3.14159265358979323846
+#define SUBSTEP_CELL_FRACTION 0.25 /* largest tip move per substep, in cells */
+#define MAX_SUBSTEPS 4096          /* a jump longer than 1024 cells is cut in coarser pieces */
+#define RELAX_MAX_SWEEPS 20000     /* bound per substep; a 1.9 m x 4 m trench settles in ~2500 */
+#define LOOK_AHEAD_CELLS 1.5       /* where the force model reads the uncut surface */
+#define CAPACITY_BISECTIONS 100
+#define FULL_FRACTION (1.0 - 1e-12)
+
+typedef struct {
+    Profile profile;
+    double bucket_volume;  /* m^3 */
+    double dumped_volume;  /* m^3 */
+    double removed_volume; /* m^3, everything cut since the start */
+    double tip_y, tip_z;   /* m, tip position at the end of the last step */
+    int held;              /* cell held by the buried bucket at the last relaxation, or -1 */
+    int settled;           /* the last relaxation converged: nothing to do until a change */
+} PileState;
+
+const size_t model_state_size = sizeof(PileState);
+
+static Grid grid_of(const double *v)
+{
+    Grid g = {v[VR_y_min], (v[VR_y_max] - v[VR_y_min]) / N_h, v[VR_z_floor]};
+    return g;
+}
+
+static const char *check_parameters(const double *v)
+{
+    if (!(v[VR_n_cells] == N_h)) return "n_cells must equal the number of profile cells h[]";
+    if (!(v[VR_density] > 0.0 && isfinite(v[VR_density]))) return "density must be > 0 kg/m3";
+    if (!(v[VR_width] > 0.0 && isfinite(v[VR_width]))) return "width must be > 0 m";
+    if (!(isfinite(v[VR_y_min]) && isfinite(v[VR_y_max]) && v[VR_y_max] > v[VR_y_min]))
+        return "y_max must be greater than y_min (both finite)";
+    if (!(isfinite(v[VR_z_surface0]) && isfinite(v[VR_z_floor])
+          && v[VR_z_floor] < v[VR_z_surface0]))
+        return "z_floor must lie below z_surface0 (both finite)";
+    if (!(v[VR_heap_height] >= 0.0 && isfinite(v[VR_heap_height])))
+        return "heap_height must be >= 0 m (0 = flat ground)";
+    if (!isfinite(v[VR_heap_center_y])) return "heap_center_y must be finite";
+    if (!(v[VR_heap_half_width] > 0.0 && isfinite(v[VR_heap_half_width])))
+        return "heap_half_width must be > 0 m";
+    if (!(v[VR_capacity] > 0.0 && isfinite(v[VR_capacity]))) return "capacity must be > 0 m3";
+    if (!(v[VR_repose_angle] > 0.0 && v[VR_repose_angle] < 0.5 * PI))
+        return "repose_angle must lie in (0, pi/2) rad";
+    if (!(v[VR_force_speed_ramp] > 0.0 && isfinite(v[VR_force_speed_ramp])))
+        return "force_speed_ramp must be > 0 m/s";
+    return pile_check_resistance(v);
+}
+
+static const char *check_inputs(const double *v)
+{
+    if (!isfinite(v[VR_tip_y])) return "tip_y is not finite";
+    if (!isfinite(v[VR_tip_z])) return "tip_z is not finite";
+    if (!isfinite(v[VR_bucket_angle])) return "bucket_angle is not finite";
+    if (!isfinite(v[VR_dump])) return "dump is not finite";
+    return NULL;
+}
+
+/* Cuts along one substep into the bucket, never past its capacity; returns the cut volume. */
+static double cut_into_bucket(const double *v, PileState *s, const Grid *g, double ya, double za,
+                            double yb, double zb)
+{
+    const double capacity = v[VR_capacity], width = v[VR_width];
+    if (s->bucket_volume >= FULL_FRACTION * capacity) return 0.0;
+    const double free_area = (capacity - s->bucket_volume) / width;
+    double lift = 0.0;
+    if (profile_sweep_area(&s->profile, g, ya, za, yb, zb, 0.0) > free_area) {
+        /* Raise the cut until it fits: the area falls monotonically with the lift and is zero
+         * once every level is above the highest surface. */
+        double top = s->profile.h[0], low = 0.0;
+        for (int i = 1; i < N_h; ++i) top = fmax(top, s->profile.h[i]);
+        for (int j = 0; j < s->profile.n_seg; ++j) top = fmax(top, s->profile.seg_h[j]);
+        double high = top - fmax(fmin(za, zb), g->z_floor) + 1.0;
+        for (int k = 0; k < CAPACITY_BISECTIONS; ++k) {
+            const double mid = 0.5 * (low + high);
+            if (profile_sweep_area(&s->profile, g, ya, za, yb, zb, mid) > free_area)
+                low = mid;
+            else
+                high = mid;
+        }
+        lift = high;
+    }
+    const double volume = width * profile_sweep(&s->profile, g, ya, za, yb, zb, lift);
+    s->bucket_volume += volume;
+    s->removed_volume += volume;
+    return volume;
+}
+
+/* Slumps the profile if anything changed since it last settled. */
+static void settle(PileState *s, double max_step, int held, int changed)
+{
+    if (!changed && held == s->held && s->settled) return;
+    s->settled = profile_relax(&s->profile, max_step, held, RELAX_MAX_SWEEPS) < RELAX_MAX_SWEEPS;
+    s->held = held;
+}
+
+/* The cell whose boundaries the buried bucket holds closed, or -1. */
+static int held_cell(const PileState *s, const Grid *g, double y, double z)
+{
+    const int k = profile_cell(g, y);
+    return k >= 0 && z < profile_top_near(&s->profile, k) ? k : -1;
+}
+
+static void write_outputs(double *v, const PileState *s, const Grid *g, double vy, double vz)
+{
+    const double density = v[VR_density], width = v[VR_width];
+    const double tip_y = v[VR_tip_y], tip_z = v[VR_tip_z];
+    v[VR_bucket_mass] = density * s->bucket_volume;
+    v[VR_dumped_mass] = density * s->dumped_volume;
+    v[VR_removed_volume] = s->removed_volume;
+    v[VR_pile_mass] = density * width * profile_area(&s->profile, g);
+    v[VR_surface_z_at_tip] = profile_surface_at(&s->profile, g, tip_y);
+    for (int i = 0; i < N_h; ++i) v[VR_h_1 + i] = s->profile.h[i];
+
+    const double speed = hypot(vy, vz);
+    const double y_ahead = speed > 0.0 ? tip_y + LOOK_AHEAD_CELLS * g->dy * vy / speed : tip_y;
+    const double depth = fmax(0.0, profile_surface_at(&s->profile, g, y_ahead) - tip_z);
+    v[VR_cut_depth] = depth;
+    v[VR_F_y] = 0.0;
+    v[VR_F_z] = 0.0;
+    if (speed > 0.0 && depth > 0.0) {
+        const double angle = v[VR_bucket_angle];
+        double cos_rake = -(vy * cos(angle) + vz * sin(angle)) / speed;
+        cos_rake = fmin(1.0, fmax(-1.0, cos_rake));
+        const double draft = pile_draft(v, acos(cos_rake), depth);
+        const double ramp = v[VR_force_speed_ramp];
+        const double scale = draft / sqrt(speed * speed + ramp * ramp);
+        v[VR_F_y] = -scale * vy;
+        v[VR_F_z] = -scale * vz;
+    }
+}
+
+int model_initialize(double *v, void *state, const char **error)
+{
+    PileState *s = state;
+    const char *message = check_parameters(v);
+    if (message == NULL) message = check_inputs(v);
+    if (message != NULL) {
+        *error = message;
+        return 1;
+    }
+    const Grid g = grid_of(v);
+    profile_init(&s->profile, &g, v[VR_z_surface0], v[VR_heap_height], v[VR_heap_center_y],
+                 v[VR_heap_half_width]);
+    /* A heap steeper than the repose angle settles before the first step. */
+    s->settled = 0;
+    s->held = -1;
+    settle(s, g.dy * tan(v[VR_repose_angle]), -1, 1);
+    s->bucket_volume = s->dumped_volume = s->removed_volume = 0.0;
+    s->tip_y = v[VR_tip_y];
+    s->tip_z = v[VR_tip_z];
+    write_outputs(v, s, &g, 0.0, 0.0);
+    return 0;
+}
+
+int model_do_step(double *v, void *state, double t, double h, const char **error)
+{
+    PileState *s = state;
+    (void)t;
+    const char *message = check_inputs(v);
+    if (message == NULL && !(h >= 0.0)) message = "communication step size must be >= 0 s";
+    if (message != NULL) {
+        *error = message;
+        return 1;
+    }
+    const Grid g = grid_of(v);
+    const double max_step = g.dy * tan(v[VR_repose_angle]);
+    const double y0 = s->tip_y, z0 = s->tip_z, y1 = v[VR_tip_y], z1 = v[VR_tip_z];
+    const double travel = fmax(fabs(y1 - y0), fabs(z1 - z0));
+    const double pieces = ceil(travel / (SUBSTEP_CELL_FRACTION * g.dy));
+    const int n = pieces < 1.0 ? 1 : pieces > MAX_SUBSTEPS ? MAX_SUBSTEPS : (int)pieces;
+    double ya = y0, za = z0;
+    for (int k = 1; k <= n; ++k) {
+        const double f = (double)k / n;
+        const double yb = k == n ? y1 : y0 + f * (y1 - y0), zb = k == n ? z1 : z0 + f * (z1 - z0);
+        const double cut = cut_into_bucket(v, s, &g, ya, za, yb, zb);
+        settle(s, max_step, held_cell(s, &g, yb, zb), cut > 0.0);
+        ya = yb;
+        za = zb;
+    }
+    if (v[VR_dump] > 0.5) {
+        s->dumped_volume += s->bucket_volume;
+        s->bucket_volume = 0.0;
+    }
+    s->tip_y = y1;
+    s->tip_z = z1;
+    const double vy = h > 0.0 ? (y1 - y0) / h : 0.0, vz = h > 0.0 ? (z1 - z0) / h : 0.0;
+    write_outputs(v, s, &g, vy, vz);
+    return 0;
+}
