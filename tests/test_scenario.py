@@ -67,9 +67,10 @@ MISTAKES = [
      "adaptation: the path through D0 = (-20, -0.1) m is out of reach, also shifted by dy_0_m: "
      "entry via-point: bucket pin 19.304 m from the boom foot, beyond the arm's reach 8.880 m"),
     ("[plant.pile]\nfmu = \"Heap\"", [], "plant.pile.fmu: no such file 'Heap' and no model of "
-     "that name (models: HydraulicCylinder, Pile)"),
+     "that name (models: HydraulicCylinder, IdealActuator, Pile, PileZelenin)"),
     ("[plant.pile]\nfmu = \"missing/pile.fmu\"", [], "plant.pile.fmu: no such file "
-     "'missing/pile.fmu' and no model of that name (models: HydraulicCylinder, Pile)"),
+     "'missing/pile.fmu' and no model of that name (models: HydraulicCylinder, IdealActuator, "
+     "Pile, PileZelenin)"),
     ("[plant.pile.parameters]\ndensty = 1800", [],
      "plant.pile.parameters.densty: Pile has no parameter 'densty' (closest: density)"),
     ("[plant.pile.parameters]\ndensity = \"heavy\"", [],
