@@ -5,7 +5,7 @@ co-simulation FMU with equivalent ports can replace one of ours. Roles:
 
 - cylinder (boom, stick, bucket): inputs `u` (spool command, -1..1, +1 extends), `F_ext` (N,
   load along the rod, positive resists extension); outputs `x` (stroke, m), `v` (m/s), `p_A`,
-  `p_B` (Pa), `F` (N).
+  `p_B` (Pa; optional: an FMU without chambers has none), `F` (N).
 - pile: inputs `tip_y`, `tip_z` (m), `bucket_angle` (rad, plant_models.geometry.pile_bucket_angle),
   `dump` (>0.5 empties the bucket); outputs `bucket_mass` (kg), `F_y`, `F_z` (N),
   `removed_volume` (m^3), `dumped_mass`, `pile_mass` (kg), `surface_z_at_tip` (m).
@@ -17,12 +17,19 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 
+from plant_models.linear_cylinder import LinearCylinderModel
+
 CYLINDER_INPUTS: tuple[str, ...] = ("u", "F_ext")
 CYLINDER_OUTPUTS: tuple[str, ...] = ("x", "v", "p_A", "p_B", "F")
 PILE_INPUTS: tuple[str, ...] = ("tip_y", "tip_z", "bucket_angle", "dump")
 PILE_OUTPUTS: tuple[str, ...] = (
     "bucket_mass", "F_y", "F_z", "removed_volume", "dumped_mass", "pile_mass", "surface_z_at_tip",
 )
+# Outputs a role's FMU may lack: an actuator without oil chambers (IdealActuator) has no
+# chamber pressures; the excavator then logs none (absent, not a made-up 0).
+OPTIONAL_OUTPUTS: Mapping[str, tuple[str, ...]] = MappingProxyType({
+    "cylinder": ("p_A", "p_B"), "pile": (),
+})
 ROLES: Mapping[str, tuple[str, ...]] = MappingProxyType({
     "cylinder": CYLINDER_INPUTS + CYLINDER_OUTPUTS,
     "pile": PILE_INPUTS + PILE_OUTPUTS,
@@ -37,11 +44,15 @@ class FmuSpec:
         to any FMI 2.0 co-simulation .fmu.
     parameters: FMU variable name -> start value (SI units, as the FMU declares them).
     ports: role -> FMU variable name; a role left out maps to the variable of the same name.
+    linear_model: a cylinder role's linear model for its servo (plant_models.linear_cylinder);
+        None: the simulated excavator reads our HydraulicCylinder's parameters, else identifies
+        it from the FMU (orchestrator.plants.identify).
     """
 
     fmu: str
     parameters: Mapping[str, float | int | bool] = field(default_factory=dict)
     ports: Mapping[str, str] = field(default_factory=dict)
+    linear_model: LinearCylinderModel | None = None
 
     def variable(self, role: str) -> str:
         """The FMU variable that plays `role`."""

@@ -17,6 +17,9 @@ from plant_models.model_spec import FmuSpec
 DEFAULT_DAMPING = 0.7
 DEFAULT_GAIN_MARGIN_DB = 10.0
 DEFAULT_PHASE_MARGIN_DEG = 60.0
+# The floor: a servo design target below these is refused (the issue's 6 dB / 45 deg).
+REQUIRED_GAIN_MARGIN_DB = 6.0
+REQUIRED_PHASE_MARGIN_DEG = 45.0
 
 
 @dataclass(frozen=True)
@@ -37,7 +40,10 @@ class SimulatedExcavatorConfig:
     servo_damping, servo_gain_margin_db, servo_phase_margin_deg: design targets
         (plant_models.servo.design_servo).
     cylinder_models: per joint, the servo's model of a cylinder whose FMU does not have our
-        HydraulicCylinder's parameter names (None: read from the FMU's parameters).
+        HydraulicCylinder's parameter names (None: read from the FMU's parameters). A joint
+        without one whose FmuSpec gives a `linear_model`, or whose FMU has other parameter
+        names, gets the linear servo (plant_models.linear_servo) on that model or on the one
+        identified from the FMU (orchestrator.plants.identify).
     """
 
     geometry: ExcavatorGeometry
@@ -77,6 +83,9 @@ class SimulatedExcavatorConfig:
                                  f"got {value!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int):
             raise ValueError(f"SimulatedExcavatorConfig.seed must be an int, got {self.seed!r}")
+        if self.pile.linear_model is not None:
+            raise ValueError("SimulatedExcavatorConfig.pile.linear_model: only the cylinder "
+                             "roles (boom, stick, bucket) take a linear model")
         for name in ("start_pose_rad", "design_strokes_m", "cylinder_models"):
             value = getattr(self, name)
             if value is not None and len(value) != 3:

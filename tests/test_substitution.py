@@ -89,3 +89,14 @@ def test_the_cli_refuses_it_in_one_line_with_exit_2_before_any_log(copies, tmp_p
     assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
     assert "has no parameter 'bor' (closest: bore" in done.stderr
     assert not log.exists()
+
+
+@pytest.mark.parametrize("name", ["paper-2020-ideal-actuators", "paper-2020-zelenin"])
+def test_the_shipped_substitutes_complete_the_paper_campaign(name):
+    scenario = load_scenario(ROOT / "scenarios" / f"{name}.toml")
+    result = run_campaign(scenario)
+    assert result.termination == "periods", result.message
+    masses = [r["mass_kg"] for r in result.records]
+    assert len(masses) == 20 and all(0.0 < m < 60.0 for m in masses)
+    # The adaptation still brings the dug mass near m* after the first corrections.
+    assert sum(abs(r["error_kg"]) <= 5.0 for r in result.records[1:]) >= 14

@@ -38,23 +38,50 @@ def plant_roles(scenario: Scenario) -> dict[str, dict[str, Any]]:
     return out
 
 
-def servo_designs(scenario: Scenario) -> dict[str, dict[str, float]]:
-    """cylinder role -> the servo designed for it (gains, margins at the design stroke), for a
-    simulated plant; empty for another plant kind."""
+_DESIGN_FIELDS = ("natural_frequency_rad_s", "damping", "position_gain_1_s", "gain_margin_db",
+                  "phase_margin_deg", "bandwidth_rad_s")
+
+
+def servo_designs(scenario: Scenario) -> dict[str, dict[str, Any]]:
+    """cylinder role -> its servo as designed for its FMU (gains and margins; for a servo on a
+    given or identified linear model, that model too), for a simulated plant; empty for
+    another plant kind."""
     if scenario.plant.kind != "sim":
         return {}
     from orchestrator.campaign.loop import build_plant
 
     plant = build_plant(scenario)
     try:
-        return {role: {"natural_frequency_rad_s": d.natural_frequency_rad_s,
-                       "damping": d.damping, "position_gain_1_s": d.position_gain_1_s,
-                       "gain_margin_db": d.gain_margin_db,
-                       "phase_margin_deg": d.phase_margin_deg,
-                       "bandwidth_rad_s": d.bandwidth_rad_s}
-                for role, d in zip(PLANT_ROLES, plant.servo_designs, strict=False)}
+        models = getattr(plant, "linear_models", None) or [None] * len(plant.servo_designs)
+        found = getattr(plant, "identifications", None) or [None] * len(plant.servo_designs)
+        out = {}
+        for role, design, model, identified in zip(PLANT_ROLES, plant.servo_designs, models,
+                                                  found, strict=False):
+            entry: dict[str, Any] = {name: getattr(design, name) for name in _DESIGN_FIELDS
+                                     if hasattr(design, name)}
+            if model is not None:
+                entry["linear_model"] = model.describe()
+            if identified is not None:
+                entry["identified"] = identified.describe()
+            out[role] = entry
+        return out
     finally:
         plant.close()
+
+
+def _servo_line(role: str, design: dict[str, Any]) -> str:
+    parts = [f"K_p {design['position_gain_1_s']:.3g} 1/s",
+             f"gain margin {design['gain_margin_db']:.1f} dB",
+             f"phase margin {design['phase_margin_deg']:.1f} deg"]
+    if "natural_frequency_rad_s" in design:
+        parts.insert(0, f"w_h {design['natural_frequency_rad_s']:.1f} rad/s, damping "
+                        f"{design['damping']:.2f}")
+    line = f"{role}: " + ", ".join(parts)
+    if "identified" in design:
+        line += f"; {design['identified']}"
+    elif "linear_model" in design:
+        line += f"; given model {design['linear_model']}"
+    return line
 
 
 def show(path: Path, overrides: list[str], as_json: bool) -> tuple[str, int] | None:
@@ -90,10 +117,6 @@ def show(path: Path, overrides: list[str], as_json: bool) -> tuple[str, int] | N
     if servos:
         out.print("# the servo of each cylinder (design stroke; python-control margins)",
                   markup=False)
-        for role, d in servos.items():
-            out.print(f"{role}: w_h {d['natural_frequency_rad_s']:.1f} rad/s, damping "
-                      f"{d['damping']:.2f}, K_p {d['position_gain_1_s']:.2f} 1/s, gain margin "
-                      f"{d['gain_margin_db']:.1f} dB, phase margin {d['phase_margin_deg']:.1f} "
-                      f"deg, bandwidth {d['bandwidth_rad_s']:.1f} rad/s", markup=False,
-                      soft_wrap=True)
+        for role, design in servos.items():
+            out.print(_servo_line(role, design), markup=False, soft_wrap=True)
     return None

@@ -26,7 +26,13 @@ from pathlib import Path
 import numpy as np
 
 from fmus.runs import FastSlave
-from plant_models.model_spec import CYLINDER_INPUTS, PILE_INPUTS, ROLES, FmuSpec
+from plant_models.model_spec import (
+    CYLINDER_INPUTS,
+    OPTIONAL_OUTPUTS,
+    PILE_INPUTS,
+    ROLES,
+    FmuSpec,
+)
 
 _ROLE_INPUTS = {"cylinder": CYLINDER_INPUTS, "pile": PILE_INPUTS}
 # Parameter roles: parameters the plant sets itself, mapped like ports (x0: initial stroke, m).
@@ -53,8 +59,9 @@ def fmu_path(spec: FmuSpec, component: str) -> Path:
 def check_component(component: str, role: str, spec: FmuSpec, description) -> dict[str, str]:
     """Check `spec`'s port map and parameters against an FMU's model description.
 
-    Returns {port role: FMU variable name} for the role's ports and parameter roles. Raises
-    ValueError naming the component, the role and the variable.
+    Returns {port role: FMU variable name} for the role's ports and parameter roles; an
+    optional output (OPTIONAL_OUTPUTS) that the FMU lacks and the port map does not name is left
+    out. Raises ValueError naming the component, the role and the variable.
     """
     if role not in ROLES:
         raise ValueError(f"{component}: unknown role {role!r}; roles: {', '.join(ROLES)}")
@@ -72,6 +79,8 @@ def check_component(component: str, role: str, spec: FmuSpec, description) -> di
         name = spec.variable(port)
         wanted = "input" if port in _ROLE_INPUTS[role] else "output"
         variable = variables.get(name)
+        if variable is None and port in OPTIONAL_OUTPUTS[role] and port not in spec.ports:
+            continue
         if variable is None:
             raise ValueError(f"{component}: role {port!r} maps to variable {name!r}, which "
                              f"{description.modelName} does not have")
@@ -124,9 +133,12 @@ class Component:
         output_roles = tuple(p for p in ROLES[role] if p not in input_roles)
         self.input_index = {port: i for i, port in enumerate(input_roles)}
         self.output_index = {port: i for i, port in enumerate(output_roles)}
+        present = [p for p in output_roles if p in ports]
+        self.missing_outputs: tuple[str, ...] = tuple(p for p in output_roles if p not in ports)
+        """Optional output roles the FMU does not have (their `outputs` slots hold NaN)."""
         try:
             self._slave = FastSlave(path, [ports[p] for p in input_roles],
-                                    [ports[p] for p in output_roles], start_values,
+                                    [ports[p] for p in present], start_values,
                                     instance_name=name, unzip_dir=unzip_dir)
         except ValueError as error:
             raise ValueError(f"{name}: {error}") from None
@@ -135,10 +147,22 @@ class Component:
                              f"start values ({error})") from None
         self.inputs: np.ndarray = self._slave.inputs
         """(n_inputs,) buffer, role input order: write here, then step()."""
-        self.outputs: np.ndarray = self._slave.outputs()
-        """(n_outputs,) buffer, role output order, refreshed by every step()."""
-        self.step = self._slave.step
-        """step(t_s, h_s): set the inputs, step from t_s by h_s, refresh `outputs`."""
+        if not self.missing_outputs:
+            self.outputs: np.ndarray = self._slave.outputs()
+            """(n_outputs,) buffer, role output order, refreshed by every step()."""
+            self.step = self._slave.step
+            """step(t_s, h_s): set the inputs, step from t_s by h_s, refresh `outputs`."""
+        else:  # a copy into the role's layout: only for FMUs that lack optional outputs
+            self.outputs = np.full(len(output_roles), np.nan)
+            slots = np.array([output_roles.index(p) for p in present])
+            self.outputs[slots] = self._slave.outputs()
+            slave_step, slave_out, outputs = self._slave.step, self._slave.outputs(), self.outputs
+
+            def step(t_s: float, h_s: float) -> None:
+                slave_step(t_s, h_s)
+                outputs[slots] = slave_out
+
+            self.step = step
         self._vr = {v.name: v.valueReference for v in description.modelVariables}
 
     def read(self, names: Sequence[str]) -> np.ndarray:

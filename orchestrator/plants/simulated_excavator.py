@@ -8,8 +8,9 @@ One communication step h from t_k (the reference is interpolated onto the grid t
 2. the Pile steps with the tip at t_k: it cuts along the tip's path since the last step and
    returns the bucket's content and the soil force;
 3. cylinder loads from gravity (links and payload) and the soil force; each servo
-   (plant_models.servo) turns the stroke reference, the measured stroke and force into a spool
-   command; the cylinders step from t_k to t_k + h with command and load held.
+   (plant_models.servo; plant_models.linear_servo for a cylinder FMU known only by its linear
+   model, given or identified) turns the stroke reference, the measured stroke and force into
+   a spool command; the cylinders step from t_k to t_k + h with command and load held.
 
 At the end of a period the load cell reads the Pile's bucket mass (plus Gaussian noise from one
 generator seeded per plant), then the Pile steps once more with `dump` high and the bucket
@@ -31,8 +32,11 @@ from functools import lru_cache
 import numpy as np
 
 from orchestrator.plants.arm_coupling import ArmCoupling
+from orchestrator.plants.identify import CylinderIdentification, identify_cylinder
 from orchestrator.plants.master import Master, check_component, fmu_path
 from plant_models.cylinder_model import CylinderModel
+from plant_models.linear_cylinder import LinearCylinderModel
+from plant_models.linear_servo import LinearJointServo, LinearServoDesign, design_linear_servo
 from plant_models.linkage import JOINT_NAMES
 from plant_models.model_spec import CYLINDER_OUTPUTS, PILE_OUTPUTS
 from plant_models.plant import JointReference, PeriodMeasurement
@@ -69,13 +73,22 @@ class SimulatedExcavator:
         self._steps = 0  # communication steps taken by the cylinders
         self._pile_time = 0.0
         self._initial_surface: tuple[np.ndarray, np.ndarray] | None = None
-        designs = []
+        designs, linear_models, identifications = [], [], []
         for index, (joint, spec) in enumerate(zip(JOINT_NAMES, config.cylinders, strict=True)):
             description = _description(joint, spec)
             check_component(joint, "cylinder", spec, description)
-            given = config.cylinder_models[index] if config.cylinder_models else None
-            model = given or _model_from_fmu(joint, description, spec.parameters)
             stroke = self.coupling.tables[index].stroke_m
+            given = config.cylinder_models[index] if config.cylinder_models else None
+            # An explicit model wins; then our HydraulicCylinder's parameters (the paper
+            # scenario: unchanged); only an FMU with other parameter names is identified.
+            model = given if given is not None or spec.linear_model is not None \
+                else _model_from_fmu(description, spec.parameters)
+            if model is None:
+                design, linear, identified = _linear_servo(joint, spec, stroke, config)
+                designs.append(design)
+                linear_models.append(linear)
+                identifications.append(identified)
+                continue
             if not math.isclose(model.stroke_m, stroke, rel_tol=1e-9):
                 raise ValueError(f"{joint}: cylinder stroke {model.stroke_m} m differs from the "
                                  f"linkage's stroke {stroke} m")
@@ -84,7 +97,15 @@ class SimulatedExcavator:
             designs.append(design_servo(
                 model, config.communication_step_s, design_stroke, config.servo_damping,
                 config.servo_gain_margin_db, config.servo_phase_margin_deg))
-        self.servo_designs: tuple[ServoDesign, ...] = tuple(designs)
+            linear_models.append(None)
+            identifications.append(None)
+        self.servo_designs: tuple[ServoDesign | LinearServoDesign, ...] = tuple(designs)
+        # Per joint: the linear model the servo was designed on (given in the FmuSpec or
+        # identified; None for a joint on the CylinderModel servo), and the identification
+        # (its per-operating-point fits; None when none was run). For printing and logging.
+        self.linear_models: tuple[LinearCylinderModel | None, ...] = tuple(linear_models)
+        self.identifications: tuple[CylinderIdentification | None, ...] = \
+            tuple(identifications)
         pile_description = _description("pile", config.pile)
         check_component("pile", "pile", config.pile, pile_description)
         self._profile_names = sorted(
@@ -113,7 +134,8 @@ class SimulatedExcavator:
                  for j, s, f in zip(JOINT_NAMES, strokes, loads, strict=True)}
         start["pile"] = {"tip_y": tip_y, "tip_z": tip_z, "bucket_angle": -angle, "dump": 0.0}
         self._master = Master(components, cfg.communication_step_s, start)
-        self._servos = tuple(JointServo(d) for d in self.servo_designs)
+        self._servos = tuple(JointServo(d) if isinstance(d, ServoDesign) else LinearJointServo(d)
+                             for d in self.servo_designs)
         profile, grid = self._profile()
         self._initial_surface = None if profile is None or grid is None else (grid, profile)
 
@@ -162,6 +184,9 @@ class SimulatedExcavator:
         rows, joints = self._track(*stroke_ref)
         table = np.array(rows)
         signals = {name: table[:, i].copy() for i, name in enumerate(_COLUMNS)}
+        for joint in JOINT_NAMES:  # an FMU without e.g. chamber pressures measured none
+            for port in self._master[joint].missing_outputs:
+                del signals[f"{joint}.{port}"]
         weighed = float(signals["pile.bucket_mass"][-1])
         weighed += self.config.load_cell_noise_kg * float(self._rng.standard_normal())
         self._dump()
@@ -277,9 +302,28 @@ def _description(component: str, spec):
         raise ValueError(f"{component}: cannot read {path.name}: {error}") from None
 
 
-def _model_from_fmu(joint: str, description, parameters) -> CylinderModel:
+def _model_from_fmu(description, parameters) -> CylinderModel | None:
+    """Our HydraulicCylinder's model from the FMU's parameters; None for an FMU with other
+    parameter names (its servo then works on a linear model)."""
     try:
         return CylinderModel.from_fmu_parameters({**_start_values(description), **parameters})
-    except ValueError as error:
-        raise ValueError(f"{joint}: {error}; give SimulatedExcavatorConfig.cylinder_models "
-                         "for an FMU with other parameter names") from None
+    except ValueError:
+        return None
+
+
+def _linear_servo(joint: str, spec, stroke_m: float, config: SimulatedExcavatorConfig):
+    """(design, linear model, identification or None) of `joint`'s linear servo: on the
+    FmuSpec's linear_model, else on the model identified from the FMU."""
+    identified = None
+    model = spec.linear_model
+    if model is None:
+        identified = identify_cylinder(fmu_path(spec, joint), spec.ports, spec.parameters,
+                                       stroke_m, config.communication_step_s)
+        model = identified.model
+    elif not math.isclose(model.stroke_m, stroke_m, rel_tol=0.01):
+        raise ValueError(f"{joint}: linear_model.stroke_m {model.stroke_m} m differs from the "
+                         f"linkage's stroke {stroke_m:.4g} m by more than 1 %")
+    points = tuple(f.model for f in identified.fits) if identified is not None else ()
+    design = design_linear_servo(model, config.communication_step_s, joint, points,
+                                 config.servo_gain_margin_db, config.servo_phase_margin_deg)
+    return design, model, identified

@@ -131,23 +131,28 @@ def roles(run: RunFile) -> dict[str, dict[str, Any]]:
 
 
 def differing_roles(reviews: list[dict[str, Any]]) -> dict[str, list[str]]:
-    """component -> what differs in it between the runs: "FMU" (another model: its sha256),
-    "FMU name (same content)", "ports", or the names of the parameters whose values differ; only
-    roles that differ."""
+    """component -> what differs in it between the runs: "FMU (A | B)" (another model: its
+    sha256 differs), "FMU name (same content)", "ports", and the parameters that every run sets
+    but to different values; only roles that differ."""
     out: dict[str, list[str]] = {}
     names = sorted({role for review in reviews for role in review["roles"]})
     for role in names:
         tables = [review["roles"].get(role, {}) for review in reviews]
         what = []
+        names = [Path(str(t.get("fmu", ""))).name for t in tables]
         if len({t.get("sha256") for t in tables}) > 1:
-            what.append("FMU")
-        elif len({Path(str(t.get("fmu", ""))).name for t in tables}) > 1:
+            what.append(f"FMU ({' | '.join(dict.fromkeys(names))})")
+        elif len(set(names)) > 1:
             what.append("FMU name (same content)")
         if len({json.dumps(t.get("ports", {}), sort_keys=True) for t in tables}) > 1:
             what.append("ports")
-        keys = sorted({k for t in tables for k in t.get("parameters", {})})
-        what += [k for k in keys if len({json.dumps(t.get("parameters", {}).get(k))
-                                         for t in tables}) > 1]
+        # Parameters set to different values (or left to the FMU's default in some runs); where
+        # the FMU itself differs, only those every run sets: another model's own are not news.
+        sets = [set(t.get("parameters", {})) for t in tables]
+        keys = set.intersection(*sets) if what and what[0].startswith("FMU (") \
+            else set.union(*sets)
+        what += [k for k in sorted(keys) if len({json.dumps(t.get("parameters", {}).get(k))
+                                                 for t in tables}) > 1]
         if what:
             out[role] = what
     return out

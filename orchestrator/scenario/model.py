@@ -187,11 +187,32 @@ def _plant_defaults(preset: str) -> dict[str, Any]:
     return plant
 
 
+_MAX_BASES = 8  # base files a scenario may stack (a circle is refused before this)
+
+
 def load_scenario(path: str | Path, overrides: Sequence[str] = (),
                   check_fmus: bool = True) -> Scenario:
-    """Read, override (`--set KEY=VALUE` items) and validate a TOML scenario file."""
+    """Read, override (`--set KEY=VALUE` items) and validate a TOML scenario file.
+
+    A file may start from another: `base = "paper-2020.toml"` (relative to the file) takes
+    every value of that scenario, then this file's on top (the same merge as over the preset's
+    defaults; `name` is never inherited). Relative FMU paths resolve against the loaded file.
+    """
     path = Path(path)
     source = path.name
+    text, data = _read_scenario_file(path, ())
+    data.setdefault("name", path.stem)
+    data = apply_overrides(data, overrides, source)
+    scenario = scenario_from_dict(data, source=source, base_dir=path.resolve().parent,
+                                  check_fmus=check_fmus)
+    scenario._source_text = text
+    scenario._overrides = tuple(overrides)
+    return scenario
+
+
+def _read_scenario_file(path: Path, chain: tuple[Path, ...]) -> tuple[str, dict[str, Any]]:
+    """(the file's text, its data with its `base` merged under it)."""
+    source = path.name if not chain else f"{chain[0].name} (base {path.name})"
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -202,13 +223,19 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (),
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
         raise ScenarioError(source, "", f"not valid TOML: {error}") from None
-    data.setdefault("name", path.stem)
-    data = apply_overrides(data, overrides, source)
-    scenario = scenario_from_dict(data, source=source, base_dir=path.resolve().parent,
-                                  check_fmus=check_fmus)
-    scenario._source_text = text
-    scenario._overrides = tuple(overrides)
-    return scenario
+    base = data.pop("base", None)
+    if base is None:
+        return text, data
+    if not isinstance(base, str) or not base:
+        raise ScenarioError(source, "base", f"expected a scenario file name, got {base!r}")
+    base_path = (path.parent / base).resolve()
+    if base_path in (*chain, path.resolve()):
+        raise ScenarioError(source, "base", f"{base!r} is this scenario or one it is based on")
+    if len(chain) >= _MAX_BASES:
+        raise ScenarioError(source, "base", f"more than {_MAX_BASES} base files in a row")
+    _, below = _read_scenario_file(base_path, (*chain, path.resolve()))
+    below.pop("name", None)
+    return text, _merge(below, data, ())
 
 
 def scenario_from_dict(data: Mapping[str, Any], *, source: str = "scenario",
@@ -283,9 +310,14 @@ def _known_keys(loc: list[str]) -> list[str]:
     model: Any = Scenario
     for part in loc:
         info = getattr(model, "model_fields", {}).get(part)
-        if info is None or not isinstance(info.annotation, type):
+        if info is None:
             return []
-        model = info.annotation
+        # An optional table (`lab: LabSection | None`) lists its model's keys.
+        kinds = [a for a in getattr(info.annotation, "__args__", (info.annotation,))
+                 if isinstance(a, type) and hasattr(a, "model_fields")]
+        if not kinds:
+            return []
+        model = kinds[0]
     return list(getattr(model, "model_fields", {}))
 
 

@@ -10,6 +10,7 @@ from pydantic import BaseModel, ConfigDict, Field, StrictStr, field_validator, m
 from orchestrator.scenario.values import Number, ParameterValue, numbers
 from planner.digging_path import PathShape
 from plant_models import presets
+from plant_models.linear_cylinder import LinearCylinderModel
 from plant_models.model_spec import FmuSpec
 
 _positive = (lambda v: v > 0.0, "> 0")
@@ -88,15 +89,29 @@ class AdaptationSection(Section):
         return self
 
 
+class LinearModelSection(Section):
+    """plant_models.linear_cylinder.LinearCylinderModel of a cylinder role (SI units)."""
+
+    velocity_gain_m_s: Number = Field(gt=0.0)
+    natural_frequency_rad_s: Number = Field(gt=0.0)
+    damping: Number = Field(ge=0.0)
+    stroke_m: Number = Field(gt=0.0)
+
+
 class FmuSection(Section):
-    """plant_models.model_spec.FmuSpec: our model's name or a .fmu path, start values, ports."""
+    """plant_models.model_spec.FmuSpec: our model's name or a .fmu path, start values, ports;
+    linear_model (cylinder roles): the servo's model of the FMU (absent: read or identified)."""
 
     fmu: StrictStr
     parameters: dict[StrictStr, ParameterValue] = {}
     ports: dict[StrictStr, StrictStr] = {}
+    linear_model: LinearModelSection | None = None
 
     def spec(self) -> FmuSpec:
-        return FmuSpec(fmu=self.fmu, parameters=dict(self.parameters), ports=dict(self.ports))
+        linear = None if self.linear_model is None \
+            else LinearCylinderModel(**self.linear_model.model_dump())
+        return FmuSpec(fmu=self.fmu, parameters=dict(self.parameters), ports=dict(self.ports),
+                       linear_model=linear)
 
 
 class LogSection(Section):

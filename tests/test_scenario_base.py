@@ -1,0 +1,52 @@
+"""`base = "other.toml"`: a scenario that starts from another one."""
+
+from pathlib import Path
+
+import pytest
+
+from orchestrator.scenario import ScenarioError, load_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+PAPER = ROOT / "scenarios" / "paper-2020.toml"
+
+
+def test_a_based_scenario_is_its_base_with_its_own_values_on_top(tmp_path):
+    (tmp_path / "paper.toml").write_text(PAPER.read_text())
+    child = tmp_path / "child.toml"
+    child.write_text('base = "paper.toml"\nperiods = 3\n[plant.pile.parameters]\ndensity = 1800\n')
+    based = load_scenario(child).to_dict()
+    expected = load_scenario(PAPER, ["periods=3", "plant.pile.parameters.density=1800"]).to_dict()
+    assert based["name"] == "child"  # never inherited
+    assert {**based, "name": "paper-2020"} == expected
+
+
+def test_the_shipped_substitution_scenarios_differ_from_the_paper_only_in_their_fmus():
+    for name, roles, fmu in (("paper-2020-ideal-actuators", ("boom", "stick", "bucket"),
+                              "IdealActuator"), ("paper-2020-zelenin", ("pile",), "PileZelenin")):
+        data = load_scenario(ROOT / "scenarios" / f"{name}.toml").to_dict()
+        paper = load_scenario(PAPER).to_dict()
+        for role in roles:
+            assert data["plant"][role]["fmu"] == fmu
+            data["plant"][role] = paper["plant"][role] = None
+        assert {**data, "name": "", "description": ""} == \
+            {**paper, "name": "", "description": ""}
+
+
+@pytest.mark.parametrize("text, message", [
+    ('base = 5\n', "base: expected a scenario file name, got 5"),
+    ('base = "missing.toml"\n', "no such scenario file"),
+    ('base = "loop.toml"\n', "base: 'loop.toml' is this scenario or one it is based on"),
+])
+def test_a_wrong_base_is_one_line(tmp_path, text, message):
+    path = tmp_path / "loop.toml"
+    path.write_text(text)
+    with pytest.raises(ScenarioError, match=message) as error:
+        load_scenario(path)
+    assert "\n" not in str(error.value)
+
+
+def test_a_circle_of_bases_is_refused(tmp_path):
+    (tmp_path / "a.toml").write_text('base = "b.toml"\n')
+    (tmp_path / "b.toml").write_text('base = "a.toml"\n')
+    with pytest.raises(ScenarioError, match=r"a\.toml \(base b\.toml\): base: 'a\.toml' is"):
+        load_scenario(tmp_path / "a.toml")
