@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 
 from plant_models.linear_cylinder import LinearCylinderModel
+from plant_models.port_units import PortMap
 
 CYLINDER_INPUTS: tuple[str, ...] = ("u", "F_ext")
 CYLINDER_OUTPUTS: tuple[str, ...] = ("x", "v", "p_A", "p_B", "F")
@@ -44,6 +45,8 @@ class FmuSpec:
         to any FMI 2.0 co-simulation .fmu.
     parameters: FMU variable name -> start value (SI units, as the FMU declares them).
     ports: role -> FMU variable name; a role left out maps to the variable of the same name.
+    port_maps: role -> PortMap with an explicit si = scale * fmu_value + offset (else the FMU's
+        declared unit is converted, plant_models.port_units).
     linear_model: a cylinder role's linear model for its servo (plant_models.linear_cylinder);
         None: the simulated excavator reads our HydraulicCylinder's parameters, else identifies
         it from the FMU (orchestrator.plants.identify).
@@ -53,6 +56,22 @@ class FmuSpec:
     parameters: Mapping[str, float | int | bool] = field(default_factory=dict)
     ports: Mapping[str, str] = field(default_factory=dict)
     linear_model: LinearCylinderModel | None = None
+    port_maps: Mapping[str, PortMap] = field(default_factory=dict)
+
+    @classmethod
+    def from_table(cls, fmu: str, parameters: Mapping, ports: Mapping,
+                   linear_model: LinearCylinderModel | None = None) -> FmuSpec:
+        """From a scenario's FMU table, whose port entries are a variable name or a table
+        {variable, scale, offset}."""
+        names, maps = {}, {}
+        for role, entry in ports.items():
+            if isinstance(entry, Mapping):
+                maps[role] = PortMap(str(entry["variable"]), float(entry.get("scale", 1.0)),
+                                     float(entry.get("offset", 0.0)))
+                names[role] = maps[role].variable
+            else:
+                names[role] = entry
+        return cls(fmu, dict(parameters), names, linear_model, maps)
 
     def variable(self, role: str) -> str:
         """The FMU variable that plays `role`."""

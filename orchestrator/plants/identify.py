@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from plant_models.linear_cylinder import LinearCylinderModel
+from plant_models.port_units import PortMap
 
 STROKE_FRACTIONS: tuple[float, ...] = (0.25, 0.5, 0.75)
 OPENINGS: tuple[float, ...] = (0.1, 0.3)
@@ -78,15 +79,17 @@ _CACHE: dict[tuple, CylinderIdentification] = {}
 def identify_cylinder(fmu_path: str | Path, ports: Mapping[str, str],
                       parameters: Mapping[str, float | int | bool], stroke_m: float,
                       step_s: float, openings: Sequence[float] = OPENINGS,
-                      stroke_fractions: Sequence[float] = STROKE_FRACTIONS
+                      stroke_fractions: Sequence[float] = STROKE_FRACTIONS,
+                      conversions: Mapping[str, PortMap] | None = None
                       ) -> CylinderIdentification:
     """Identify the linear model of the cylinder FMU at fmu_path (see the module docstring).
 
     ports: role -> FMU variable (roles u, F_ext, x, v, x0; missing roles are their own name);
     parameters: start values (SI); stroke_m (m): the usable stroke; step_s (s): the servo's
-    communication step (samples every step_s / 10). Cached by the FMU's sha256, parameters,
-    ports and settings. ValueError naming the FMU and variable when it does not move, gives
-    NaN or fails.
+    communication step (samples every step_s / 10); conversions: role -> PortMap of ports whose
+    FMU values are not SI (orchestrator.plants.master.port_conversions). Cached by the FMU's
+    sha256, parameters, ports, conversions and settings. ValueError naming the FMU and variable
+    when it does not move, gives NaN or fails.
     """
     path = Path(fmu_path)
     if not (math.isfinite(stroke_m) and stroke_m > 0.0):
@@ -95,16 +98,18 @@ def identify_cylinder(fmu_path: str | Path, ports: Mapping[str, str],
         raise ValueError(f"{path.name}: step_s must be > 0 s, got {step_s!r}")
     content = path.read_bytes()  # once: a rebuild of the file meanwhile must not mix versions
     digest = hashlib.sha256(content).hexdigest()
+    conversions = dict(conversions or {})
     key = (digest, tuple(sorted(parameters.items())), tuple(sorted(ports.items())),
-           float(stroke_m), float(step_s), tuple(openings), tuple(stroke_fractions))
+           tuple(sorted(conversions.items())), float(stroke_m), float(step_s), tuple(openings),
+           tuple(stroke_fractions))
     if key not in _CACHE:
         _CACHE[key] = _identify(path, content, ports, parameters, stroke_m, step_s,
-                                openings, stroke_fractions)
+                                openings, stroke_fractions, conversions)
     return _CACHE[key]
 
 
 def _identify(path: Path, content: bytes, ports, parameters, stroke_m: float, step_s: float,
-              openings, stroke_fractions) -> CylinderIdentification:
+              openings, stroke_fractions, conversions) -> CylinderIdentification:
     from fmpy import extract
 
     names = {role: ports.get(role, role) for role in ("u", "F_ext", "x", "v", "x0")}
@@ -119,7 +124,7 @@ def _identify(path: Path, content: bytes, ports, parameters, stroke_m: float, st
                 for command in (opening, -opening):
                     fits.append(_one_run(path, unzip, names, parameters, stroke_m,
                                          step_s / SAMPLES_PER_STEP, fraction * stroke_m,
-                                         command))
+                                         command, conversions))
     finally:
         shutil.rmtree(folder, ignore_errors=True)
     smallest = min(abs(c) for c in openings)
@@ -135,23 +140,35 @@ def _identify(path: Path, content: bytes, ports, parameters, stroke_m: float, st
 
 
 def _one_run(path: Path, unzip: str, names: Mapping[str, str], parameters, stroke_m: float,
-             dt: float, operating_stroke: float, command: float) -> OperatingPointFit:
+             dt: float, operating_stroke: float, command: float,
+             conversions: Mapping[str, PortMap]) -> OperatingPointFit:
     """Drive the FMU from rest with `command` held; fit the velocity (see the module doc)."""
     from fmus.runs import FastSlave
+
+    identity = PortMap("")
+
+    def fmu_value(role: str, si: float) -> float:
+        return conversions.get(role, identity).from_si(si)
+
+    x_map, v_map = conversions.get("x", identity), conversions.get("v", identity)
 
     travel = TRAVEL_FRACTION * stroke_m
     start = operating_stroke - math.copysign(0.5 * travel, command)
     where = f"{path.name} ({names['u']} = {command:+g} at {names['x']} = {start:.4g} m)"
-    start_values = {**parameters, names["x0"]: start, names["u"]: command, names["F_ext"]: 0.0}
+    u_fmu, load_fmu = fmu_value("u", command), fmu_value("F_ext", 0.0)
+    start_values = {**parameters, names["x0"]: fmu_value("x0", start), names["u"]: u_fmu,
+                    names["F_ext"]: load_fmu}
     rows = np.empty((MAX_SAMPLES + 1, 2))
     try:
         with FastSlave(unzip, [names["u"], names["F_ext"]], [names["x"], names["v"]],
                        start_values, "identify", unzip) as slave:
-            slave.inputs[:] = (command, 0.0)
-            rows[0] = slave.outputs()
+            slave.inputs[:] = (u_fmu, load_fmu)
+            scale = np.array([x_map.scale, v_map.scale])  # to SI: scale * fmu + offset
+            offset = np.array([x_map.offset, v_map.offset])
+            rows[0] = scale * slave.outputs() + offset
             count = MAX_SAMPLES
             for k in range(MAX_SAMPLES):
-                rows[k + 1] = slave.step(k * dt, dt)
+                rows[k + 1] = scale * slave.step(k * dt, dt) + offset
                 if not np.all(np.isfinite(rows[k + 1])):
                     bad = names["x"] if not math.isfinite(rows[k + 1, 0]) else names["v"]
                     raise ValueError(f"{where}: output {bad} is {rows[k + 1].tolist()} at "

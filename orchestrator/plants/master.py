@@ -33,6 +33,7 @@ from plant_models.model_spec import (
     ROLES,
     FmuSpec,
 )
+from plant_models.port_units import PortMap, unit_conversion
 
 _ROLE_INPUTS = {"cylinder": CYLINDER_INPUTS, "pile": PILE_INPUTS}
 # Parameter roles: parameters the plant sets itself, mapped like ports (x0: initial stroke, m).
@@ -94,7 +95,30 @@ def check_component(component: str, role: str, spec: FmuSpec, description) -> di
         _check_settable(component, description, variables, ports[port], port)
     for name in spec.parameters:
         _check_settable(component, description, variables, name, None)
+    port_conversions(component, spec, description, ports)
     return ports
+
+
+def port_conversions(component: str, spec: FmuSpec, description,
+                     ports: Mapping[str, str]) -> dict[str, PortMap]:
+    """role -> PortMap for every port whose FMU value is not already the role's SI value: the
+    scenario's explicit scale and offset, else the FMU's declared unit converted
+    (plant_models.port_units). ValueError naming the component, role and variable."""
+    variables = {v.name: v for v in description.modelVariables}
+    definitions = {u.name: u for u in getattr(description, "unitDefinitions", [])}
+    out = {}
+    for role, name in ports.items():
+        if role in spec.port_maps:
+            if not spec.port_maps[role].identity:
+                out[role] = spec.port_maps[role]
+            continue
+        try:
+            conversion = unit_conversion(role, variables[name], definitions)
+        except ValueError as error:
+            raise ValueError(f"{component}: {error}") from None
+        if conversion is not None:
+            out[role] = conversion
+    return out
 
 
 def _closest(name: str, candidates: list[str]) -> str:
@@ -121,12 +145,20 @@ def _check_settable(component, description, variables, name, port) -> None:
                          f"{description.modelName}; only parameters and inputs can be set")
 
 
+def _affine(roles: Sequence[str], conversions: Mapping[str, PortMap]):
+    """(scale, offset) arrays of `roles` in order (1, 0 where not converted)."""
+    scale = np.array([conversions[r].scale if r in conversions else 1.0 for r in roles])
+    offset = np.array([conversions[r].offset if r in conversions else 0.0 for r in roles])
+    return scale, offset
+
+
 class Component:
     """One initialised FMU instance (see the module docstring)."""
 
     def __init__(self, name: str, role: str, spec: FmuSpec, path: Path, description,
                  ports: Mapping[str, str], unzip_dir: str,
-                 start_values: Mapping[str, float]) -> None:
+                 start_values: Mapping[str, float],
+                 conversions: Mapping[str, PortMap] | None = None) -> None:
         self.name, self.role, self.spec, self.path = name, role, spec, path
         self.description = description
         input_roles = _ROLE_INPUTS[role]
@@ -147,20 +179,29 @@ class Component:
                              f"start values ({error})") from None
         self.inputs: np.ndarray = self._slave.inputs
         """(n_inputs,) buffer, role input order: write here, then step()."""
-        if not self.missing_outputs:
+        self.conversions = dict(conversions or {})
+        """role -> PortMap of the ports converted between the FMU's units and SI."""
+        if not self.missing_outputs and not self.conversions:
             self.outputs: np.ndarray = self._slave.outputs()
             """(n_outputs,) buffer, role output order, refreshed by every step()."""
             self.step = self._slave.step
             """step(t_s, h_s): set the inputs, step from t_s by h_s, refresh `outputs`."""
-        else:  # a copy into the role's layout: only for FMUs that lack optional outputs
+        else:  # copies in role layout and SI units: only for FMUs that need them
+            self.inputs = np.zeros(len(input_roles))
             self.outputs = np.full(len(output_roles), np.nan)
             slots = np.array([output_roles.index(p) for p in present])
-            self.outputs[slots] = self._slave.outputs()
-            slave_step, slave_out, outputs = self._slave.step, self._slave.outputs(), self.outputs
+            # si = scale * fmu + offset, per slot (identity where a port is not converted).
+            in_scale, in_offset = _affine(input_roles, self.conversions)
+            out_scale, out_offset = _affine(tuple(present), self.conversions)
+            slave_step, slave_in = self._slave.step, self._slave.inputs
+            slave_out, outputs, inputs = self._slave.outputs(), self.outputs, self.inputs
+            inputs[:] = in_scale * slave_in + in_offset  # the start values, in SI
+            outputs[slots] = out_scale * slave_out + out_offset
 
             def step(t_s: float, h_s: float) -> None:
+                slave_in[:] = (inputs - in_offset) / in_scale
                 slave_step(t_s, h_s)
-                outputs[slots] = slave_out
+                outputs[slots] = out_scale * slave_out + out_offset
 
             self.step = step
         self._vr = {v.name: v.valueReference for v in description.modelVariables}
@@ -207,20 +248,23 @@ class Master:
             except Exception as error:
                 raise ValueError(f"{name}: cannot read {path.name}: {error}") from None
             ports = check_component(name, role, spec, description)
+            conversions = port_conversions(name, spec, description, ports)
             values = dict(spec.parameters)
             for key, value in start_values.get(name, {}).items():
                 if key not in _ROLE_INPUTS[role] + PARAMETER_ROLES[role]:
                     raise ValueError(f"{name}: start values are set by input or parameter "
                                      f"role, got {key!r}")
-                values[ports[key]] = value
-            checked.append((name, role, spec, path, description, ports, values))
+                # Start values come in the role's SI units: into the FMU's.
+                values[ports[key]] = conversions[key].from_si(value) if key in conversions \
+                    else value
+            checked.append((name, role, spec, path, description, ports, values, conversions))
         try:
-            for name, role, spec, path, description, ports, values in checked:
+            for name, role, spec, path, description, ports, values, conversions in checked:
                 if path not in self._unzip_dirs:
                     self._unzip_dirs[path] = extract(
                         str(path), unzipdir=tempfile.mkdtemp(prefix="excosim-fmu-"))
                 self.components[name] = Component(name, role, spec, path, description, ports,
-                                                  self._unzip_dirs[path], values)
+                                                  self._unzip_dirs[path], values, conversions)
         except BaseException:
             self.close()
             raise

@@ -33,7 +33,7 @@ import numpy as np
 
 from orchestrator.plants.arm_coupling import ArmCoupling
 from orchestrator.plants.identify import CylinderIdentification, identify_cylinder
-from orchestrator.plants.master import Master, check_component, fmu_path
+from orchestrator.plants.master import Master, check_component, fmu_path, port_conversions
 from plant_models.cylinder_model import CylinderModel
 from plant_models.linear_cylinder import LinearCylinderModel
 from plant_models.linear_servo import LinearJointServo, LinearServoDesign, design_linear_servo
@@ -76,7 +76,8 @@ class SimulatedExcavator:
         designs, linear_models, identifications = [], [], []
         for index, (joint, spec) in enumerate(zip(JOINT_NAMES, config.cylinders, strict=True)):
             description = _description(joint, spec)
-            check_component(joint, "cylinder", spec, description)
+            ports = check_component(joint, "cylinder", spec, description)
+            conversions = port_conversions(joint, spec, description, ports)
             stroke = self.coupling.tables[index].stroke_m
             given = config.cylinder_models[index] if config.cylinder_models else None
             # An explicit model wins; then our HydraulicCylinder's parameters (the paper
@@ -84,7 +85,8 @@ class SimulatedExcavator:
             model = given if given is not None or spec.linear_model is not None \
                 else _model_from_fmu(description, spec.parameters)
             if model is None:
-                design, linear, identified = _linear_servo(joint, spec, stroke, config)
+                design, linear, identified = _linear_servo(joint, spec, stroke, config,
+                                                           conversions)
                 designs.append(design)
                 linear_models.append(linear)
                 identifications.append(identified)
@@ -311,14 +313,16 @@ def _model_from_fmu(description, parameters) -> CylinderModel | None:
         return None
 
 
-def _linear_servo(joint: str, spec, stroke_m: float, config: SimulatedExcavatorConfig):
+def _linear_servo(joint: str, spec, stroke_m: float, config: SimulatedExcavatorConfig,
+                  conversions=None):
     """(design, linear model, identification or None) of `joint`'s linear servo: on the
     FmuSpec's linear_model, else on the model identified from the FMU."""
     identified = None
     model = spec.linear_model
     if model is None:
         identified = identify_cylinder(fmu_path(spec, joint), spec.ports, spec.parameters,
-                                       stroke_m, config.communication_step_s)
+                                       stroke_m, config.communication_step_s,
+                                       conversions=conversions)
         model = identified.model
     elif not math.isclose(model.stroke_m, stroke_m, rel_tol=0.01):
         raise ValueError(f"{joint}: linear_model.stroke_m {model.stroke_m} m differs from the "

@@ -18,6 +18,7 @@ from typing import Any
 from orchestrator.plants.master import check_component, fmu_path
 from orchestrator.scenario.errors import ScenarioError
 from plant_models.model_spec import FmuSpec
+from plant_models.port_units import si_to_declared
 
 _ROLE_OF = {"boom": "cylinder", "stick": "cylinder", "bucket": "cylinder", "pile": "pile"}
 _PORT_IN_MESSAGE = re.compile(r"role '([^']+)'")
@@ -45,24 +46,24 @@ def resolve_fmus(plant: dict[str, Any], source: str, base_dir: Path,
                                     f"no model of that name (models: {', '.join(fmus.MODELS)})")
             table["fmu"] = str(path.resolve())
         try:
-            spec = FmuSpec(table["fmu"], table["parameters"], table["ports"])
+            spec = FmuSpec.from_table(table["fmu"], table["parameters"], table["ports"])
             description = _description(fmu_path(spec, component))
-            check_component(component, role, FmuSpec(spec.fmu, {}, spec.ports), description)
+            check_component(component, role, FmuSpec(spec.fmu, {}, spec.ports,
+                                                     port_maps=spec.port_maps), description)
         except ValueError as error:
             port = _PORT_IN_MESSAGE.search(str(error))
             field = f"{where}.ports.{port.group(1)}" if port else f"{where}.fmu"
             raise ScenarioError(source, field, _without_component(error, component)) from None
         variables = {v.name: v for v in description.modelVariables}
         if given is not None:
-            table["parameters"] = {
-                name: value for name, value in table["parameters"].items()
-                if name in given[component] or _fits(variables.get(name), value)}
-            spec = FmuSpec(table["fmu"], table["parameters"], table["ports"])
+            table["parameters"] = _kept(table["parameters"], given[component], variables,
+                                        description)
+            spec = FmuSpec.from_table(table["fmu"], table["parameters"], table["ports"])
         for name, value in spec.parameters.items():
             field = f"{where}.parameters.{name}"
             try:
-                check_component(component, role, FmuSpec(spec.fmu, {name: value}, spec.ports),
-                                description)
+                check_component(component, role, FmuSpec(spec.fmu, {name: value}, spec.ports,
+                                                         port_maps=spec.port_maps), description)
             except ValueError as error:
                 raise ScenarioError(source, field, _without_component(error, component)) from None
             _check_type(variables[name], description.modelName, value, source, field)
@@ -80,6 +81,27 @@ def _description(path: Path):
 
 def _without_component(error: ValueError, component: str) -> str:
     return str(error).removeprefix(f"{component}: ")
+
+
+def _kept(parameters: dict[str, Any], given: set[str], variables: dict, description
+          ) -> dict[str, Any]:
+    """The scenario's own parameters, and the preset's defaults (SI, like our models) that the
+    FMU declares: converted into the FMU's declared unit (a stroke of 1.289 m is 1289 for a
+    variable in mm), dropped where they do not fit or the unit is not known."""
+    definitions = {u.name: u for u in getattr(description, "unitDefinitions", [])}
+    out = {}
+    for name, value in parameters.items():
+        if name in given:
+            out[name] = value
+            continue
+        variable = variables.get(name)
+        if not _fits(variable, value):
+            continue
+        if variable.type == "Real":
+            value = si_to_declared(float(value), variable, definitions)
+        if value is not None:
+            out[name] = value
+    return out
 
 
 def _fits(variable, value: Any) -> bool:

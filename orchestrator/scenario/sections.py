@@ -5,9 +5,17 @@ from __future__ import annotations
 
 import math
 
-from pydantic import BaseModel, ConfigDict, Field, StrictStr, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    StrictStr,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
-from orchestrator.scenario.values import Number, ParameterValue, numbers
+from orchestrator.scenario.values import Number, ParameterValue, first_error, numbers
 from planner.digging_path import PathShape
 from plant_models import presets
 from plant_models.linear_cylinder import LinearCylinderModel
@@ -98,20 +106,53 @@ class LinearModelSection(Section):
     stroke_m: Number = Field(gt=0.0)
 
 
+class PortSection(Section):
+    """A port mapped with a conversion: role value (SI) = scale * FMU value + offset."""
+
+    variable: StrictStr
+    scale: Number = 1.0
+    offset: Number = 0.0
+
+    @field_validator("scale")
+    @classmethod
+    def _not_zero(cls, value: float) -> float:
+        if value == 0.0:
+            raise ValueError("must not be 0")
+        return value
+
+
 class FmuSection(Section):
     """plant_models.model_spec.FmuSpec: our model's name or a .fmu path, start values, ports;
     linear_model (cylinder roles): the servo's model of the FMU (absent: read or identified)."""
 
     fmu: StrictStr
     parameters: dict[StrictStr, ParameterValue] = {}
-    ports: dict[StrictStr, StrictStr] = {}
+    ports: dict[StrictStr, StrictStr | PortSection] = {}
     linear_model: LinearModelSection | None = None
+
+    @field_validator("ports", mode="before")
+    @classmethod
+    def _port_tables(cls, value):
+        """A port table's own mistake names the table's key (ports.x.scale), not the union."""
+        if not isinstance(value, dict):
+            return value
+        out = {}
+        for role, entry in value.items():
+            if isinstance(entry, dict):
+                try:
+                    entry = PortSection.model_validate(entry)
+                except ValidationError as error:
+                    field, reason = first_error(error)
+                    raise ValueError(f"{role}.{field}: {reason}") from None
+            out[role] = entry
+        return out
 
     def spec(self) -> FmuSpec:
         linear = None if self.linear_model is None \
             else LinearCylinderModel(**self.linear_model.model_dump())
-        return FmuSpec(fmu=self.fmu, parameters=dict(self.parameters), ports=dict(self.ports),
-                       linear_model=linear)
+        ports = {role: p if isinstance(p, str) else p.model_dump()
+                 for role, p in self.ports.items()}
+        return FmuSpec.from_table(self.fmu, self.parameters, ports, linear)
 
 
 class LogSection(Section):
