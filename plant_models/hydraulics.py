@@ -46,8 +46,10 @@ lab (the paper's lab excavator, section 3.3: 20 bar maximum oil pressure, 100 ml
     friction Coulomb 10 N (about 1-2 % of the stall forces), smoothing speed 1 mm/s, viscous
              50 N s/m; rod and piston 0.05 kg
     Pile: the paper pile scaled like the arm (LAB_SCALE) in y, z, heap and soil-force speed ramp;
-    a 0.2 m slice (the machine is 240 mm wide) of 1600 kg/m^3 soil; heaped capacity 0.8 m^2 x
-    LAB_SCALE^2 x 0.2 m (1.9 kg).
+    a slice of the machine's 0.24 m width of 1600 kg/m^3 sand. The bucket is sized by the
+    published 10 kg maximum load: heaped, it holds 10 kg of the sand (6.25 L). (The paper arm's
+    bucket scaled by LAB_SCALE would hold 1.4 L, 2.2 kg: too small for Figure 15, whose first
+    period falls 3.5 kg short of the target.)
 """
 
 from __future__ import annotations
@@ -106,11 +108,15 @@ def _lab_cylinders() -> dict[str, dict[str, float]]:
     }
 
 
+LAB_SAND_DENSITY = 1600.0  # kg/m^3, the lab sandbox's sand (the Pile FMU's default soil)
+
+
 def _lab_pile() -> dict[str, float]:
     s = presets.LAB_SCALE
     return {"y_min": -13.0 * s, "y_max": -2.0 * s, "z_floor": -5.0 * s,
-            "heap_center_y": -9.0 * s, "heap_half_width": 2.0 * s, "width": 0.2,
-            "density": 1600.0, "capacity": 0.8 * s * s * 0.2, "force_speed_ramp": 0.05 * s}
+            "heap_center_y": -9.0 * s, "heap_half_width": 2.0 * s, "width": presets.LAB_WIDTH_M,
+            "density": LAB_SAND_DENSITY, "capacity": presets.LAB_MAX_LOAD_KG / LAB_SAND_DENSITY,
+            "force_speed_ramp": 0.05 * s}
 
 
 # Communication step per preset (s), also the servo's sample time. paper: 10 ms keeps every

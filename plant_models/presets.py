@@ -41,7 +41,8 @@ lab
     published 0.414 m.
     Masses scale with LAB_SCALE^3 (about 0.6 g per kg). The 1.15 m length includes the
     undercarriage, which this planar arm model does not describe; the 10 kg load and 20 bar belong
-    to the payload and hydraulics models.
+    to the payload and hydraulics models (plant_models.hydraulics: the bucket holds the 10 kg
+    maximum load of sand heaped, over the machine's 0.24 m width).
 """
 
 from __future__ import annotations
@@ -53,9 +54,12 @@ from plant_models.geometry import ExcavatorGeometry, LinkMass
 from plant_models.linkage import BucketLinkage, PinJointCylinder
 
 NAMES = ("paper", "lab")
-# Paper section 3.3: the lab excavator's published envelope.
+# Paper section 3.3: the lab excavator's published envelope and load.
+LAB_LENGTH_M = 1.15
 LAB_HEIGHT_M = 0.832
+LAB_WIDTH_M = 0.24
 LAB_DIGGING_DEPTH_M = 0.414
+LAB_MAX_LOAD_KG = 10.0
 # Lab arm / standard arm lengths: the standard arm's maximum tip height (9.736 m) scaled to
 # LAB_HEIGHT_M.
 LAB_SCALE = LAB_HEIGHT_M / 9.736

@@ -54,8 +54,10 @@ MISTAKES = [
     ("[path]\nentry_offset_m = -0.5", [],
      "path.entry_offset_m: must be greater than or equal to 0, got -0.5"),
     ('[machine]\npreset = "big"', [], "machine.preset: unknown preset 'big'; known: paper, lab"),
-    ('[plant]\nkind = "lab"', [], 'plant.kind: the lab plant is not available yet; use "sim"'),
-    ('[plant]\nkind = "real"', [], "plant.kind: unknown plant kind 'real'; use \"sim\""),
+    ('[plant]\nkind = "lab"\n[plant.lab]\nstream_rate_hz = 0', [],
+     "plant.lab.stream_rate_hz: must be greater than 0, got 0.0"),
+    ('[plant]\nkind = "real"', [], "plant.kind: unknown plant kind 'real'; use \"sim\" or "
+     "\"lab\""),
     ("[plant]\ncommunication_step_s = 0", [],
      "plant.communication_step_s: must be greater than 0, got 0.0"),
     ("[adaptation]\ncentres_kg = [-9, -6, -3, 0, 3, 6, 9]\ncentre_fractions = [0.1, 0.3, 0.6]",

@@ -66,7 +66,13 @@ class CampaignResult:
 
 
 def build_plant(scenario: Scenario) -> Plant:
-    """The plant a scenario names (plant.kind "sim": the FMU-based simulated excavator)."""
+    """The plant a scenario names: plant.kind "sim", the FMU-based simulated excavator; "lab",
+    the lab excavator over CAN (orchestrator.plants.lab; with plant.lab.emulate its emulated
+    device runs in this process)."""
+    if scenario.plant.kind == "lab":
+        from orchestrator.plants.lab.factory import open_lab_plant
+
+        return open_lab_plant(scenario)
     from orchestrator.plants.simulated_excavator import SimulatedExcavator
     from plant_models.hydraulics import default_config
 

@@ -109,8 +109,9 @@ def fmus_info(
 def fmus_validate(
     target: Annotated[str, typer.Argument(metavar="FMU", help="A .fmu file or one of our model "
                                           "names.")],
-    role: Annotated[str | None, typer.Option("--role", help="Role it must fill: cylinder or "
-                                             "pile (default: any).")] = None,
+    role: Annotated[str | None, typer.Option("--role", metavar="ROLE",
+                                             help="Role it must fill: cylinder or pile "
+                                             "(default: any).")] = None,
     fmi3: Annotated[bool, typer.Option("--fmi3", help="For a model name: its FMI 3.0 build.")
                     ] = False,
 ) -> None:
@@ -159,13 +160,26 @@ def run(
     force: Annotated[
         bool, typer.Option("--force", "-f", help="Overwrite the -o file if it exists.")
     ] = False,
+    plant: Annotated[
+        str | None, typer.Option("--plant", metavar="sim|lab", help="Dig with the simulated "
+                                 "excavator or the lab excavator over CAN (table plant.lab).")
+    ] = None,
+    emulate: Annotated[
+        bool, typer.Option("--emulate", help="Lab plant: run the emulated excavator in this "
+                           "process on python-can's virtual bus (hardware-in-the-loop).")
+    ] = False,
 ) -> None:
     """Run a digging campaign: plan, dig and weigh period after period; log it to MCAP."""
     from orchestrator.cli import run as run_command
+    from orchestrator.cli.lab import run_overrides
 
     if as_json and quiet:
         _fail("--json and --quiet exclude each other", 2)
-    items = [*(overrides or []), *([f"periods={periods}"] if periods is not None else [])]
+    lab_items, problem = run_overrides(plant, emulate)
+    if problem is not None:
+        _fail(problem, 2)
+    items = [*lab_items, *(overrides or []),
+             *([f"periods={periods}"] if periods is not None else [])]
     failure = run_command.run(scenario, output, items, as_json=as_json, quiet=quiet,
                               force=force)
     if failure is not None:
@@ -296,6 +310,45 @@ def log_repair(
     state = "finished" if report.finished else "did not finish"
     print(f"wrote {report.target}: {periods}, {report.messages} messages; the run {state}"
           + ("; the end of the file was cut off and left out" if report.truncated else ""))
+
+
+@app.command("emulate", cls=Command)
+def emulate(
+    interface: Annotated[str, typer.Option("--interface", metavar="NAME", help="python-can "
+                                           "interface, e.g. socketcan, slcan, pcan, virtual.")
+                         ] = "socketcan",
+    channel: Annotated[str, typer.Option("--channel", metavar="NAME",
+                                         help="Bus channel, e.g. vcan0 or can0.")] = "vcan0",
+    bitrate: Annotated[int, typer.Option("--bitrate", metavar="BIT/S")] = 500_000,
+    scenario: Annotated[
+        Path | None, typer.Option("--scenario", metavar="FILE.toml", help="The machine to "
+                                  "emulate and its plant.lab link (default: the lab preset).")
+    ] = None,
+    time_scale: Annotated[
+        float | None, typer.Option("--time-scale", metavar="X", help="Machine time per wall "
+                                   "second (default: the scenario's, 1 = real time).")
+    ] = None,
+    duration: Annotated[
+        float | None, typer.Option("--duration", metavar="S", help="Stop after S wall seconds "
+                                   "(default: at Ctrl-C).")
+    ] = None,
+    faults: Annotated[
+        list[str] | None, typer.Option("--fault", metavar="KEY=VALUE", help="Inject a fault, "
+                                       "e.g. --fault estop_at_s=5 (keys of plant.lab.faults; "
+                                       "repeatable).")
+    ] = None,
+    overrides: Annotated[
+        list[str] | None, typer.Option("--set", metavar="KEY=VALUE",
+                                       help="Override a scenario value (repeatable).")
+    ] = None,
+) -> None:
+    """Run the emulated lab excavator (our FMUs) as the device side of the CAN protocol."""
+    from orchestrator.cli.lab import emulate as emulate_device
+
+    failure = emulate_device(interface, channel, bitrate, scenario, time_scale, duration,
+                             faults or [], overrides or [])
+    if failure is not None:
+        _fail(*failure)
 
 
 @app.command("completion", cls=Command)

@@ -15,6 +15,7 @@ from pydantic import (
     model_validator,
 )
 
+from orchestrator.scenario.lab_section import LabSection
 from orchestrator.scenario.values import Number, ParameterValue, first_error, numbers
 from planner.digging_path import PathShape
 from plant_models import presets
@@ -164,6 +165,10 @@ class LogSection(Section):
 
 
 class PlantSection(Section):
+    """kind "sim": the simulated excavator of the FMU tables; "lab": the lab excavator over CAN
+    ([plant.lab], orchestrator.scenario.lab_section), whose emulated device uses the FMU tables
+    and communication_step_s too."""
+
     kind: StrictStr
     communication_step_s: Number = Field(gt=0.0)
     load_cell_noise_kg: Number = Field(ge=0.0)
@@ -171,12 +176,20 @@ class PlantSection(Section):
     stick: FmuSection
     bucket: FmuSection
     pile: FmuSection
+    lab: LabSection | None = None
 
     @field_validator("kind")
     @classmethod
-    def _simulated(cls, value: str) -> str:
-        if value == "lab":
-            raise ValueError('the lab plant is not available yet; use "sim"')
-        if value != "sim":
-            raise ValueError(f'unknown plant kind {value!r}; use "sim"')
+    def _known_kind(cls, value: str) -> str:
+        if value not in ("sim", "lab"):
+            raise ValueError(f'unknown plant kind {value!r}; use "sim" or "lab"')
         return value
+
+    @model_validator(mode="before")
+    @classmethod
+    def _lab_defaults(cls, data):
+        """A lab plant without a [plant.lab] table takes its defaults (resolved, so the run
+        log shows every value the link ran with)."""
+        if isinstance(data, dict) and data.get("kind") == "lab" and data.get("lab") is None:
+            data = {**data, "lab": {}}
+        return data
