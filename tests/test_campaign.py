@@ -19,7 +19,7 @@ from orchestrator.scenario import load_scenario, scenario_from_dict
 from planner.digging_path import joint_via_points
 from planner.trajectory import plan_trajectory
 from plant_models.geometry import Unreachable
-from plant_models.plant import JOINTS
+from plant_models.plant import JOINTS, PeriodMeasurement
 
 PAPER = Path(__file__).resolve().parent.parent / "scenarios" / "paper-2020.toml"
 
@@ -250,3 +250,32 @@ def test_an_existing_log_is_refused_before_anything_is_dug_unless_overwritten(pa
                           overwrite=True)
     assert result.termination == "periods"
     assert read_run(path).periods == result.records
+
+
+class StopsMidPeriod(KinematicPlant):
+    """Stops in period 2 after half of it, handing over what it measured (like the lab
+    driver's LabStop)."""
+
+    def run_period(self, reference):
+        measured = super().run_period(reference)
+        if len(self.references) == 2:
+            half = len(measured.t_s) // 2
+            error = RuntimeError("emergency stop (test double)")
+            error.partial = PeriodMeasurement(measured.t_s[:half], measured.joints_rad[:half],
+                                              measured.reference_rad[:half], float("nan"))
+            raise error
+        return measured
+
+
+def test_what_a_stopped_period_measured_is_in_the_log(paper, tmp_path):
+    scenario = scenario_from_dict({**paper.to_dict(), "periods": 3})
+    path = tmp_path / "stopped.mcap"
+    result = run_campaign(scenario, plant=StopsMidPeriod(scenario.geometry()), log_path=path)
+    assert result.termination == "error" and "emergency stop" in result.message
+    run = read_run(path, topics=("/joints",))
+    assert len(run.periods) == 1 and run.termination == "error"
+    joints = run.channels["/joints"]
+    complete, unfinished = joints.of_period(1), joints.of_period(2)
+    assert len(unfinished["t_s"]) > 10  # the half period is there, after period 1's samples
+    assert unfinished["t_s"][0] == pytest.approx(result.records[0]["duration_s"], abs=0.05)
+    assert len(complete["t_s"]) > len(unfinished["t_s"])

@@ -32,7 +32,7 @@ from orchestrator.scenario.model import Scenario, load_scenario
 from planner.adaptation import Decision, initial_state, next_deepest_point
 from planner.trajectory import JointTrajectory
 from plant_models.geometry import Unreachable
-from plant_models.plant import JointReference, Plant, initial_pile_surface
+from plant_models.plant import JointReference, PeriodMeasurement, Plant, initial_pile_surface
 
 # End message of a campaign stopped from outside (Ctrl-C, SystemExit): its ending says nothing
 # about the campaign (orchestrator.review.replay does not compare it).
@@ -166,7 +166,17 @@ def _dig(scenario: Scenario, plant: Plant, log, records: list,
         trajectory = planner.plan(state.y_D, state.z_D)
         if isinstance(trajectory, Unreachable):  # the adaptation hands out reachable points only
             raise RuntimeError(f"D = ({state.y_D}, {state.z_D}) m: {trajectory.reason}")
-        measurement = plant.run_period(sample_reference(trajectory, step_s))
+        try:
+            measurement = plant.run_period(sample_reference(trajectory, step_s))
+        except Exception as failure:
+            # A plant that stops mid-period may hand over what it measured: log it too.
+            partial = getattr(failure, "partial", None)
+            if log is not None and isinstance(partial, PeriodMeasurement):
+                try:
+                    log.log_unfinished(partial, t0_s)
+                except Exception:  # noqa: BLE001 - the plant's failure is what to report
+                    pass
+            raise
         record = period_record(state, decision, trajectory, measurement,
                                scenario.target_mass_kg, t0_s)
         if log is not None:

@@ -171,28 +171,9 @@ class RunLog:
             raise ValueError(f"period {period} record must be a dict, got {type(record)}")
         record_json = to_json(dict(record), f"period {period} record").encode()
         period_data = decimated(checked(measurement), self._sample_rate_hz)
-        t, joints = period_data.t_s, period_data.joints_rad
-        if not (math.isfinite(t0_s) and t0_s >= 0.0 and t0_s + t[0] >= 0.0):
-            raise ValueError(f"t0_s must be finite and t0_s + t_s >= 0, got t0_s = {t0_s!r}")
-        times = t0_s + t
-        log_ns = np.rint(times * 1e9).astype(np.uint64)
-        start_ns, end_ns = int(round(t0_s * 1e9)), int(log_ns[-1])
         chunk = ChunkBuilder()
-        batches = []
-        for sample in sample_channels(period_data, times):
-            channel = self._proto_channel(sample.topic, sample.message, sample.metadata)
-            first = self._writer.reserve_sequence(channel, len(times))
-            batches.append(DoubleBatch(channel, first, sample.prefixes, sample.values))
-        chunk.add_batches(batches, log_ns)
-        picked = np.arange(0, len(t), scene.decimation_stride(t, self._rate_hz))
-        display = display_channel(period_data, times, picked)
-        channel = self._proto_channel(display.topic, display.message, display.metadata)
-        chunk.add_batches([DoubleBatch(channel, self._writer.reserve_sequence(channel, len(picked)),
-                                       display.prefixes, display.values)], log_ns[picked])
-        tip_path = None
-        if self._geometry is not None:
-            self._add_arm(chunk, joints[picked], log_ns[picked], start_ns)
-            tip_path = scene.tip_positions(self._geometry, joints[picked])
+        times, tip_path = self._add_samples(chunk, period_data, t0_s)
+        end_ns = int(np.rint(times[-1] * 1e9))
         grid, profile = period_data.pile_grid_m, period_data.pile_profile_m
         if profile is not None:
             channel = self._proto_channel("/pile/profile", PILE_PROFILE, {})
@@ -208,6 +189,43 @@ class RunLog:
         self._writer.write_chunk(chunk)
         self._writer.flush(self._fsync)
         self._periods = period
+
+    def log_unfinished(self, measurement: PeriodMeasurement, t0_s: float) -> None:
+        """Write the samples of a period that did not finish (a plant that stopped mid-period
+        hands over what it measured) as one flushed chunk, without a /period record: nothing
+        measured is lost, and readers count only complete periods."""
+        if self._closed:
+            raise ValueError(f"run log {self.path} is closed")
+        chunk = ChunkBuilder()
+        self._add_samples(chunk, decimated(checked(measurement), self._sample_rate_hz), t0_s)
+        self._writer.write_chunk(chunk)
+        self._writer.flush(self._fsync)
+
+    def _add_samples(self, chunk: ChunkBuilder, period_data, t0_s: float):
+        """The sample channels, /display and the arm of a period into `chunk`; returns the
+        campaign times (m,) s and the bucket-tip path (or None without a geometry)."""
+        t, joints = period_data.t_s, period_data.joints_rad
+        if not (math.isfinite(t0_s) and t0_s >= 0.0 and t0_s + t[0] >= 0.0):
+            raise ValueError(f"t0_s must be finite and t0_s + t_s >= 0, got t0_s = {t0_s!r}")
+        times = t0_s + t
+        log_ns = np.rint(times * 1e9).astype(np.uint64)
+        start_ns = int(round(t0_s * 1e9))
+        batches = []
+        for sample in sample_channels(period_data, times):
+            channel = self._proto_channel(sample.topic, sample.message, sample.metadata)
+            first = self._writer.reserve_sequence(channel, len(times))
+            batches.append(DoubleBatch(channel, first, sample.prefixes, sample.values))
+        chunk.add_batches(batches, log_ns)
+        picked = np.arange(0, len(t), scene.decimation_stride(t, self._rate_hz))
+        display = display_channel(period_data, times, picked)
+        channel = self._proto_channel(display.topic, display.message, display.metadata)
+        chunk.add_batches([DoubleBatch(channel, self._writer.reserve_sequence(channel, len(picked)),
+                                       display.prefixes, display.values)], log_ns[picked])
+        tip_path = None
+        if self._geometry is not None:
+            self._add_arm(chunk, joints[picked], log_ns[picked], start_ns)
+            tip_path = scene.tip_positions(self._geometry, joints[picked])
+        return times, tip_path
 
     def log_pile_surface(self, grid_m: np.ndarray, profile_m: np.ndarray, t_s: float = 0.0
                          ) -> None:
