@@ -94,8 +94,7 @@ def test_the_completion_script_completes_commands_and_options(tmp_path):
         done = _excosim("completion", shell, cwd=tmp_path)
         assert done.returncode == 0 and "_EXCOSIM_COMPLETE" in done.stdout
     bash = shutil.which("bash")
-    if bash is None:
-        pytest.skip("no bash to try the script in")
+    assert bash is not None  # the machines this runs on have bash (the README's blocks need it)
     script = tmp_path / "bin" / "excosim"
     script.parent.mkdir()
     script.write_text(f'#!/bin/sh\nexec "{sys.executable}" -c "{MAIN}" "$@"\n')

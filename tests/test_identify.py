@@ -70,8 +70,6 @@ def test_identification_is_cached_by_content_and_settings():
 def test_a_first_order_actuator_is_overdamped():
     """IdealActuator (a first-order velocity servo, tau = 0.05 s, v_max = 0.3 m/s): zeta >= 1,
     K_v = v_max, and the second-order model's slow pole is the actuator's 1/tau."""
-    if "IdealActuator" not in fmus.MODELS:
-        pytest.skip("no IdealActuator model in this tree")
     result = identify_cylinder(fmus.build("IdealActuator"), {}, {"stroke": 1.3}, 1.3, 0.01,
                                openings=(0.3,))
     model = result.model
