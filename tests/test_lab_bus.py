@@ -26,7 +26,7 @@ def period():
     # defaults would be 25 ms of wall time, tighter than a loaded test machine (the timeouts
     # themselves are test_lab_faults.py's).
     scenario = load_scenario(LAB, ["plant.kind=lab", "plant.lab.emulate=true",
-                                   "plant.lab.interface=virtual", "plant.lab.time_scale=2",
+                                   "plant.lab.interface=virtual", "plant.lab.time_scale=1",
                                    "plant.lab.command_timeout_s=0.08",
                                    "plant.lab.feedback_timeout_s=0.12",
                                    "plant.lab.heartbeat_timeout_s=1.0"])

@@ -25,7 +25,7 @@ def test_a_master_digs_with_the_standalone_emulator(capsys):
     device.start()
     scenario = scenario_from_dict({"name": "lab-preset", "machine": {"preset": "lab"}})
     # The device needs a few seconds to start (its FMUs and servo design): a long connect time.
-    settings = LabSettings(channel=channel, time_scale=2.0, command_timeout_s=0.08,
+    settings = LabSettings(channel=channel, time_scale=1.0, command_timeout_s=0.08,
                            feedback_timeout_s=0.12, heartbeat_timeout_s=1.0,
                            connect_timeout_s=16.0)
     plant = LabExcavator(settings, scenario.geometry().joint_limits_rad, scenario.limits_rad())

@@ -4,9 +4,10 @@ the reason.
 
 Reaction times are read off the bus: an independent listener records every frame with its bus
 time (the sender's clock, python-can's virtual interface), converted to machine time with the
-time scale. The runs use a 20 Hz stream (T = 50 ms) at a time scale of 2-3 so that a test takes
-seconds and one frame period is 17-25 ms of wall time, more than the scheduling noise of a
-loaded test machine; the real-time figures at a time scale of 1 come from bench/lab_bus.py.
+time scale. The runs use a 20 Hz stream (T = 50 ms) in real time (time scale 1): faster runs
+(2-3) failed on a machine busy with other work, when the emulated device, which shares the
+process and its interpreter lock with the driver, fell behind its feedback timeout. The
+figures of the stream itself come from bench/lab_bus.py.
 """
 
 import math
@@ -69,7 +70,7 @@ class Outcome:
         return self.first("Command", Cmd=int(Cmd.HOLD))
 
 
-def _run(tmp_path, faults, periods=1, scale=2.0, link=()) -> Outcome:
+def _run(tmp_path, faults, periods=1, scale=1.0, link=()) -> Outcome:
     scenario = load_scenario(LAB, [f"periods={periods}", f"plant.lab.time_scale={scale}", *LINK,
                                    *link, *(f"plant.lab.faults.{item}" for item in faults)])
     plant = open_lab_plant(scenario)
@@ -144,7 +145,7 @@ def test_delayed_feedback_stops_the_master_after_the_feedback_timeout(tmp_path):
 
 
 def test_lost_setpoints_are_extrapolated_counted_and_the_period_goes_on(tmp_path):
-    out = _run(tmp_path, ["drop_fraction=0.1", "seed=3"], scale=3.0, link=LENIENT)
+    out = _run(tmp_path, ["drop_fraction=0.1", "seed=3"], scale=1.0, link=LENIENT)
     assert out.result.termination == "periods", out.result.message
     assert out.faults.dropped_setpoints > 10
     assert out.device.rx_lost == out.faults.dropped_setpoints  # counter gaps = drops
@@ -154,7 +155,7 @@ def test_lost_setpoints_are_extrapolated_counted_and_the_period_goes_on(tmp_path
 
 
 def test_a_frozen_load_cell_ends_the_campaign_after_the_weighing_timeout(tmp_path):
-    out = _run(tmp_path, ["freeze_load_cell_at_s=15.0"], periods=2, scale=3.0, link=LENIENT)
+    out = _run(tmp_path, ["freeze_load_cell_at_s=15.0"], periods=2, scale=1.0, link=LENIENT)
     end = [f for f in out.frames if f.name == "Command" and f.signals["Cmd"] == Cmd.PERIOD_END]
     assert len(end) == 2 and end[1].signals["Period"] == 2, out.result.message
     weighing = out.first("DeviceStatus", after=end[1].t, State=int(State.WEIGHING))  # the ack
@@ -165,7 +166,7 @@ def test_a_frozen_load_cell_ends_the_campaign_after_the_weighing_timeout(tmp_pat
 
 
 def test_a_master_whose_heartbeat_stops_loses_the_lease(tmp_path):
-    scenario = load_scenario(LAB, ["plant.lab.time_scale=2", *LINK])
+    scenario = load_scenario(LAB, ["plant.lab.time_scale=1", *LINK])
     plant = open_lab_plant(scenario)
     capture = Capture(plant.settings.channel)
     try:
@@ -177,7 +178,7 @@ def test_a_master_whose_heartbeat_stops_loses_the_lease(tmp_path):
             time.sleep(0.01)
     finally:
         plant.close()
-    out = Outcome(None, capture.frames(), device, None, None, 2.0)
+    out = Outcome(None, capture.frames(), device, None, None, 1.0)  # the time scale above
     last = out.last("HeartbeatMaster")
     lost = out.first("DeviceStatus", Fault=int(Fault.LEASE_LOST))
     assert lost.signals["State"] == State.HOLD
