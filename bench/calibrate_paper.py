@@ -30,8 +30,9 @@ Parameters (scenario keys as for `--set`; bounds keep each value physical and th
                                         (disjoint, so the centres always increase)
     adaptation.dz_0_m                   -0.30 .. -0.03 m   (the first depth step)
     adaptation.dy_0_m                   1.5 .. 3.5 m       (the shift toward the machine)
-    plant.pile.parameters.width         0.0135 .. 0.0185 m (period 1 mass, ~7.2-9.9 kg)
-    plant.pile.parameters.repose_angle  0.60 .. 1.45 rad   (34-83 deg)
+    plant.pile.parameters.slice_width       0.0135 .. 0.0185 m (period 1 mass, ~7.2-9.9 kg)
+    plant.pile.parameters.repose_angle  0.60 .. 0.82 rad   (34-47 deg: walls of the 1 kPa,
+                                        30 deg soil stand 3.7 m at 47 deg, Culmann)
     plant.pile.parameters.capacity      0.020 .. 0.060 m^3 (32-96 kg at 1600 kg/m^3)
 
 The 3.18 m long stick and its range belong to the `paper` preset (plant_models/presets.py), not
@@ -98,8 +99,8 @@ PARAMETERS = (
     Parameter("adaptation.centre_fractions", 2, 0.80, 1.50, 4),
     Parameter("adaptation.dz_0_m", None, -0.30, -0.03, 4),
     Parameter("adaptation.dy_0_m", None, 1.5, 3.5, 4),
-    Parameter("plant.pile.parameters.width", None, 0.0135, 0.0185, 6),
-    Parameter("plant.pile.parameters.repose_angle", None, 0.60, 1.45, 7),
+    Parameter("plant.pile.parameters.slice_width", None, 0.0135, 0.0185, 6),
+    Parameter("plant.pile.parameters.repose_angle", None, 0.60, 0.82, 7),
     Parameter("plant.pile.parameters.capacity", None, 0.020, 0.060, 6),
 )
 

@@ -67,3 +67,27 @@ def test_after_period_1_the_error_stays_within_5_kg_but_once(campaign):
 def _figures(campaign) -> str:
     return "masses " + ", ".join(f"{r['k']}:{r['mass_kg']:.1f}{'R' if r['reset'] else ''}"
                                  for r in campaign.records)
+
+
+def test_the_cut_walls_stand_by_the_soils_strength(campaign):
+    # A 70 deg wall of a c-phi soil stands up to Culmann's critical height
+    # H_c = 4 c sin(i) cos(phi) / (gamma (1 - cos(i - phi))); the pile's slope model keeps walls
+    # at the repose angle i, so H_c must exceed the deepest trench the run digs.
+    from fmpy import read_model_description
+
+    import fmus
+
+    defaults = {v.name: float(v.start) for v in read_model_description(
+        str(fmus.build("Pile"))).modelVariables if v.causality == "parameter"}
+    soil = {**defaults, **campaign.scenario.fmu_specs()["pile"].parameters}
+    gamma, i, phi = soil["density"] * soil["gravity"], soil["repose_angle"], \
+        soil["friction_angle"]
+    critical = 4 * soil["cohesion"] * np.sin(i) * np.cos(phi) / (gamma * (1 - np.cos(i - phi)))
+    deepest = soil["z_surface0"] - min(r["lowest_tip_m"][1] for r in campaign.records)
+    assert critical > deepest, (critical, deepest)
+
+
+def test_the_lowest_tip_point_is_logged_below_d(campaign):
+    # Stage 3 closes the bucket with boom and stick held: the tip swings below D on its arc.
+    for record in campaign.records:
+        assert record["lowest_tip_m"][1] <= record["deepest_point_m"][1] + 1e-9

@@ -1,7 +1,8 @@
 """PileZelenin (fmus/PileZelenin): the Pile's mechanics with Zelenin's cutting resistance
-H = g0 C (100 d)^1.35 (1 + 2.6 B)(1 + 0.0075 alpha_deg) z, on the slice share width/B.
-Tested against a hand-computed value, its trends (depth exponent, width, cutting angle),
-its valid range, and mass conservation / identical mechanics with the Pile."""
+H = g0 C (100 d)^1.35 (1 + 2.6 B)(1 + 0.0075 alpha_deg) z on the whole bucket edge B, its
+normal force normal_ratio * H, and the DorNII penetration pressure 0.981 C MPa on the edge.
+Tested against hand-computed values, its trends (depth exponent, width, cutting angle), its
+valid range, and mass conservation / identical mechanics with the Pile."""
 
 import math
 
@@ -15,7 +16,6 @@ import fmus
 from fmus.runs import run_fmpy
 from plant_models.model_spec import PILE_INPUTS, PILE_OUTPUTS
 
-RAMP = 0.05  # force_speed_ramp default, m/s
 SPEED = 0.5  # m/s, horizontal drag towards the machine (+y)
 OUTPUTS = ["F_y", "F_z", "cut_depth", "bucket_mass", "pile_mass", "dumped_mass"]
 
@@ -35,8 +35,10 @@ def drag(fmu, depth, rake_deg=90.0, **parameters):
               "dump": np.zeros(n)}
     start = {"tip_y": -10.5, "tip_z": -depth, "bucket_angle": angle, **parameters}
     r = run_fmpy(fmu, inputs, OUTPUTS, step, start)
-    assert abs(r["F_z"][-1]) < 1e-9  # horizontal motion: the draft is horizontal
-    draft = -r["F_y"][-1] * math.hypot(SPEED, RAMP) / SPEED
+    draft = -r["F_y"][-1]  # fully mobilised after 0.2 m
+    # Horizontal motion: the normal force is the law's ratio of the draft, upwards.
+    ratio = parameters.get("normal_ratio", 0.2)
+    assert r["F_z"][-1] == pytest.approx(ratio * draft, rel=1e-12, abs=1e-9)
     return draft, r["cut_depth"][-1]
 
 
@@ -50,10 +52,25 @@ def test_valid_fmu_with_the_pile_ports(fmu):
 def test_draft_equals_the_hand_computed_zelenin_value(fmu):
     # C = 2, d = 20 cm, B = 1.2 m, alpha = 90 deg, z = 1:
     # P = 2 * 20^1.35 * (1 + 2.6*1.2) * (1 + 0.0075*90) = 2 * 57.0677 * 4.12 * 1.675
-    #   = 787.649 kgf = 7724.19 N on the whole edge; the 0.038 m slice takes 0.038/1.2 of it.
+    #   = 787.649 kgf = 7724.19 N on the whole edge (the force acts on the bucket, not on the
+    #   material slice).
     draft, depth = drag(fmu, 0.2)
     assert depth == pytest.approx(0.2, abs=1e-12)
-    assert draft == pytest.approx(244.5995, rel=1e-6)
+    assert draft == pytest.approx(7724.19, rel=1e-6)
+    assert drag(fmu, 0.2, normal_ratio=-0.3)[0] == pytest.approx(draft, rel=1e-12)
+
+
+def test_penetration_meets_the_dornii_pressure_on_the_edge(fmu):
+    # C blows of 2.5 kg falling 0.4 m drive a 1 cm^2 rod 10 cm: 0.980665 C MPa; on the
+    # default 4 cm x 1.2 m edge with C = 2: 94.14 kN, fully mobilised 0.2 m down.
+    n, step = 300, 1e-3
+    z = 0.1 - 0.5 * np.arange(1, n + 1) / n
+    inputs = {"tip_y": np.full(n, -9.0), "tip_z": z, "bucket_angle": np.full(n, 1.2),
+              "dump": np.zeros(n)}
+    r = run_fmpy(fmu, inputs, OUTPUTS, step, {"tip_y": -9.0, "tip_z": 0.1})
+    assert r["bucket_mass"][-1] == 0.0  # a vertical push cuts nothing
+    assert r["F_y"][-1] == pytest.approx(0.0, abs=1e-9)
+    assert r["F_z"][-1] == pytest.approx(0.980665e6 * 2 * 0.04 * 1.2, rel=1e-12)
 
 
 def test_depth_exponent_is_1_35(fmu):
@@ -62,18 +79,18 @@ def test_depth_exponent_is_1_35(fmu):
 
 
 def test_width_term_is_not_proportional(fmu):
-    # The slice's share of 1 + 2.6 B over B: a narrower bucket pushes harder per metre.
-    wide, _ = drag(fmu, 0.2, blade_width=1.2)
-    narrow, _ = drag(fmu, 0.2, blade_width=0.6)
-    assert narrow / wide == pytest.approx((1 + 2.6 * 0.6) / 0.6 / ((1 + 2.6 * 1.2) / 1.2),
-                                          rel=1e-9)
+    # 1 + 2.6 B, not B: half the width takes 62 % of the force (more per metre).
+    wide, _ = drag(fmu, 0.2, bucket_width=1.2)
+    narrow, _ = drag(fmu, 0.2, bucket_width=0.6)
+    assert narrow / wide == pytest.approx((1 + 2.6 * 0.6) / (1 + 2.6 * 1.2), rel=1e-9)
 
 
 def test_cutting_angle_term_and_its_clamp(fmu):
     at_90, _ = drag(fmu, 0.2, 90.0)
     at_45, _ = drag(fmu, 0.2, 45.0)
     assert at_45 / at_90 == pytest.approx((1 + 0.0075 * 45) / (1 + 0.0075 * 90), rel=1e-9)
-    # Outside [20, 90] deg the fit was not measured: the nearest end is used.
+    # Outside [20, 90] deg the fit was not measured: the nearest end is used (the shared
+    # mechanics already take a face beyond 90 deg as 90 deg).
     assert drag(fmu, 0.2, 10.0)[0] == pytest.approx(drag(fmu, 0.2, 20.0)[0], rel=1e-12)
     assert drag(fmu, 0.2, 120.0)[0] == pytest.approx(at_90, rel=1e-12)
 
@@ -84,8 +101,9 @@ def test_strength_and_cutting_factor_scale_linearly(fmu):
     assert drag(fmu, 0.2, cutting_factor=1.5)[0] == pytest.approx(1.5 * base, rel=1e-12)
 
 
-@pytest.mark.parametrize("parameters", [{"blows": 0.5}, {"blows": 40.0}, {"blade_width": 0.0},
-                                        {"blade_width": 0.02}, {"cutting_factor": 0.0}])
+@pytest.mark.parametrize("parameters", [{"blows": 0.5}, {"blows": 40.0}, {"bucket_width": 0.0},
+                                        {"normal_ratio": 1.5}, {"edge_thickness": 0.0},
+                                        {"cutting_factor": 0.0}])
 def test_outside_the_valid_range_initialization_fails(fmu, parameters):
     with pytest.raises(FMICallException, match="fmi2ExitInitializationMode"):
         simulate_fmu(str(fmu), stop_time=0.01, start_values=parameters)

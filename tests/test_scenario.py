@@ -201,12 +201,12 @@ def test_an_fmu_path_resolves_against_the_scenario_folder(tmp_path):
     shutil.copy(fmus.build("Pile"), tmp_path / "my_pile.fmu")
     (tmp_path / "sub").mkdir()
     path = _write(tmp_path / "sub", '[plant.pile]\nfmu = "../my_pile.fmu"\n'
-                  "[plant.pile.parameters]\nwidth = 0.02\n")
+                  "[plant.pile.parameters]\nslice_width = 0.02\n")
     scenario = load_scenario(path)
     pile = scenario.plant.pile
     assert Path(pile.fmu) == (tmp_path / "my_pile.fmu").resolve()
     # The preset gives the pile no parameters (the FMU's start values are its defaults).
-    assert dict(pile.parameters) == {"width": 0.02}
+    assert dict(pile.parameters) == {"slice_width": 0.02}
     assert scenario_from_dict(scenario.to_dict()) == scenario
 
 

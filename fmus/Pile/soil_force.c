@@ -88,19 +88,24 @@ static double weakest_failure_angle(const SoilStrength *soil, const Wedge *w, do
     return 0.5 * (a + b);
 }
 
-double soil_draft(const SoilStrength *soil, double beta, double depth, double *rho)
+SoilBladeForce soil_blade_force(const SoilStrength *soil, double beta, double depth)
 {
-    if (!(depth > 0.0)) {
-        if (rho != NULL) *rho = 0.0;
-        return 0.0;
-    }
+    SoilBladeForce f = {0.0, 0.0, 0.0};
+    if (!(depth > 0.0)) return f;
     beta = soil_clamped_rake(soil, beta);
     const Wedge w = wedge_of(soil, beta);
-    const double rho_min = weakest_failure_angle(soil, &w, beta, depth);
-    if (rho != NULL) *rho = rho_min;
-    const double blade = blade_force(soil, &w, rho_min, depth);
+    f.rho = weakest_failure_angle(soil, &w, beta, depth);
+    const double blade = blade_force(soil, &w, f.rho, depth);
     const double draft = blade * w.sin_bd + soil->adhesion * depth * w.cot_beta;
-    /* With a rake beyond 90 deg the adhesion term pulls the other way; a resistance never
-     * drives the bucket. */
-    return draft > 0.0 ? draft : 0.0;
+    /* A resistance never drives the bucket along its travel. */
+    f.draft = draft > 0.0 ? draft : 0.0;
+    f.normal = soil->adhesion * depth - blade * w.cos_bd;
+    return f;
+}
+
+double soil_draft(const SoilStrength *soil, double beta, double depth, double *rho)
+{
+    const SoilBladeForce f = soil_blade_force(soil, beta, depth);
+    if (rho != NULL) *rho = f.rho;
+    return f.draft;
 }

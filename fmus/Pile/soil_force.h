@@ -18,7 +18,12 @@
  * P acts at delta from the blade normal; the adhesion force c_a d w / sin(beta) acts along the
  * blade. The draft (force component against the travel) is
  *
- *   H = P sin(beta + delta) + c_a d w cot beta.
+ *   H = P sin(beta + delta) + c_a d w cot beta,
+ *
+ * and the force normal to the travel, positive away from the soil (the same vector sum: P
+ * pushes the face at delta from its normal, the adhesion pulls it up along the face),
+ *
+ *   N = c_a d w - P cos(beta + delta)     (< 0 for sharp rakes: the cut pulls the blade in).
  *
  * Check: for a smooth vertical blade (beta = 90 deg, delta = 0, c_a = 0) the minimum lies at
  * rho = 45 deg - phi/2 and H = w (gamma d^2 Kp / 2 + 2 c d sqrt(Kp) + q d Kp), Kp =
@@ -42,6 +47,16 @@ typedef struct {
 
 /* The rake angle actually used for `beta` (rad), after clamping. */
 double soil_clamped_rake(const SoilStrength *soil, double beta);
+
+typedef struct {
+    double draft;  /* H per unit width, N/m, >= 0 */
+    double normal; /* N per unit width, N/m, > 0 pushes the blade out of the soil */
+    double rho;    /* failure angle used, rad */
+} SoilBladeForce;
+
+/* Draft and normal force per unit width for a blade at rake `beta` (rad) and depth `depth`
+ * (m) >= 0, with rho minimised (all 0 at depth 0). */
+SoilBladeForce soil_blade_force(const SoilStrength *soil, double beta, double depth);
 
 /* Draft H per unit width (N/m) for a blade at rake `beta` (rad) and depth `depth` (m) >= 0,
  * with rho minimised; writes the failure angle used to *rho if rho is not NULL. */

@@ -15,11 +15,20 @@
  *
  *   H = g0 C (100 d)^1.35 (1 + 2.6 B) (1 + 0.0075 alpha_deg) z   [N],  g0 = 9.80665 N/kgf.
  *
- * The width term is not proportional to B (edge effects), so the law is evaluated for the whole
- * bucket edge (blade_width) and the slice of width `width` takes its share width/blade_width.
- * alpha is clamped to [20, 90] deg, the range of the cutting angles of buckets and blades the
- * fit comes from; a bucket curled past 90 deg is treated as 90 deg. The density does not enter:
- * C measures the soil's strength, density included.
+ * The law is evaluated for the whole bucket edge (bucket_width B): the force acts on the bucket,
+ * not on the material slice whose mass the pile tracks. alpha is clamped to [20, 90] deg, the
+ * range of the cutting angles of buckets and blades the fit comes from (the shared mechanics
+ * already cap the rake at 90 deg). The density does not enter: C measures the soil's strength,
+ * density included.
+ *
+ * Normal force: N = normal_ratio * H (Balovnev's ratio of the normal to the tangential cutting
+ * force, 0.1-0.45 from a sharp to a worn edge).
+ * Penetration: the DorNII tester that defines C drives a 1 cm^2 rod 10 cm with C blows of a
+ *   2.5 kg weight falling 0.4 m, so C measures a mean penetration pressure
+ *   q_p = C * 2.5 kg * g0 * 0.4 m / (1e-4 m^2 * 0.1 m) = 0.981 C MPa; the edge (edge_thickness
+ *   b) meets R = q_p b B min(1, d/b), built up over its first thickness of contact.
+ * Lift-out: Zelenin's fits give no law for an edge pulled out of the soil; the material above
+ *   the edge rises in the bucket (payload), so this law takes no resistance (R = 0).
  */
 #include <math.h>
 #include <stddef.h>
@@ -33,25 +42,41 @@
 #define ANGLE_COEFFICIENT 0.0075   /* 1/deg */
 #define ALPHA_MIN_DEG 20.0
 #define ALPHA_MAX_DEG 90.0
+/* Pa per DorNII blow: 2.5 kg * 9.80665 m/s2 * 0.4 m / (1e-4 m2 * 0.1 m) */
+#define DORNII_PRESSURE_PER_BLOW 980665.0
 
 const char *pile_check_resistance(const double *v)
 {
     if (!(v[VR_blows] >= 1.0 && v[VR_blows] <= 35.0))
         return "blows must lie in [1, 35] (DorNII blows, soil categories I-IV)";
-    if (!(v[VR_blade_width] > 0.0 && isfinite(v[VR_blade_width])))
-        return "blade_width must be > 0 m";
-    if (!(v[VR_width] <= v[VR_blade_width])) return "width must not exceed blade_width";
+    if (!(v[VR_edge_thickness] > 0.0 && v[VR_edge_thickness] <= 0.5))
+        return "edge_thickness must lie in (0, 0.5] m";
+    if (!(fabs(v[VR_normal_ratio]) <= 1.0)) return "normal_ratio must lie in [-1, 1]";
     if (!(v[VR_cutting_factor] > 0.0 && v[VR_cutting_factor] <= 3.0))
         return "cutting_factor must lie in (0, 3]";
     return NULL;
 }
 
-double pile_draft(const double *v, double rake, double depth)
+void pile_cutting_force(const double *v, double rake, double depth, double *draft,
+                        double *normal)
 {
-    const double blade = v[VR_blade_width];
+    const double blade = v[VR_bucket_width];
     const double alpha = fmin(ALPHA_MAX_DEG, fmax(ALPHA_MIN_DEG, rake * 180.0 / PI));
-    const double full = KGF * v[VR_blows] * pow(100.0 * depth, DEPTH_EXPONENT)
-                        * (1.0 + WIDTH_COEFFICIENT * blade) * (1.0 + ANGLE_COEFFICIENT * alpha)
-                        * v[VR_cutting_factor];
-    return full * v[VR_width] / blade;
+    *draft = KGF * v[VR_blows] * pow(100.0 * depth, DEPTH_EXPONENT)
+             * (1.0 + WIDTH_COEFFICIENT * blade) * (1.0 + ANGLE_COEFFICIENT * alpha)
+             * v[VR_cutting_factor];
+    *normal = v[VR_normal_ratio] * *draft;
+}
+
+double pile_penetration_resistance(const double *v, double depth)
+{
+    const double b = v[VR_edge_thickness];
+    return DORNII_PRESSURE_PER_BLOW * v[VR_blows] * b * v[VR_bucket_width] * fmin(1.0, depth / b);
+}
+
+double pile_lift_resistance(const double *v, double depth)
+{
+    (void)v;
+    (void)depth;
+    return 0.0;
 }

@@ -4,7 +4,11 @@ Keys (angles in the record's own units, per-joint lists in the order boom, stick
 
     k                          period index, from 1
     t0_s                       campaign time at the period's start (s)
-    deepest_point_m            [y_D, z_D] the period dug through (m)
+    deepest_point_m            [y_D, z_D] the period dug through (m): the planned D
+    lowest_tip_m               [y, z] of the lowest measured tip sample (m; absent when the plant
+                               measures no tip). Stage 3 closes the bucket with boom and stick
+                               held, so the tip swings on its arc about the bucket pin, below D:
+                               this is the deepest spot the bucket really reached (paper 2.1)
     dz_m, eps_m, flag, reset   eq. 5's step dz(k) (m); the correction eps (m) that led to it
                                (absent in period 1: no weighing came before it); Fig. 5's flag;
                                True when D came from the reset-and-shift
@@ -65,6 +69,10 @@ def period_record(state: AdaptationState, decision: Decision, trajectory: JointT
                    "knots_s": np.asarray(trajectory.spline.t).tolist(),
                    "coefficients_rad": per_joint(trajectory.spline.c)},
     }
+    tip_y, tip_z = (measurement.signals.get(name) for name in ("tip.y", "tip.z"))
+    if tip_y is not None and tip_z is not None and len(tip_z):
+        lowest = int(np.argmin(tip_z))
+        record["lowest_tip_m"] = [float(tip_y[lowest]), float(tip_z[lowest])]
     if decision.eps_m is None:  # a JSON null has no type the viewers' schema readers take
         del record["eps_m"]
     return record

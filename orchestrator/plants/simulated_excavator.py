@@ -6,7 +6,8 @@ One communication step h from t_k (the reference is interpolated onto the grid t
 1. strokes (cylinder outputs at t_k) -> joint angles, moment arms, tip and bucket angle
    (orchestrator.plants.arm_coupling);
 2. the Pile steps with the tip at t_k: it cuts along the tip's path since the last step and
-   returns the bucket's content and the soil force;
+   returns the bucket's content and the soil force there (a function of the tip's path, so
+   nothing lags a step);
 3. cylinder loads from gravity (links and payload) and the soil force; each servo
    (plant_models.servo; plant_models.linear_servo for a cylinder FMU known only by its linear
    model, given or identified) turns the stroke reference, the measured stroke and force into

@@ -21,25 +21,24 @@
  *     slump freely (and fill the next cut: the ground's memory).
  * After the substeps: dump > 0.5 moves the bucket content to dumped_mass.
  *
- * Force: the tip velocity v is the step's mean (new - old position) / h. The depth d is the
- * surface height 1.5 cells ahead of the tip along v (the uncut face; the cell under the tip is
- * already cut to the tip) minus tip_z, and 0 when that is negative. The rake angle beta is the
- * angle between the tip-to-pin line (bucket_angle) and -v (90 deg: the line is normal to the
- * motion). The model's draft H (pile_draft, pile_resistance.h) acts against the motion, ramped
- * smoothly to zero at rest: F = -H v / sqrt(|v|^2 + force_speed_ramp^2). A force normal to the
- * motion is left out (it does no work along the path).
+ * Force: tip_force.c, in the surface frame, from the tip's path: an elastic-plastic state per
+ * resistance, advanced by the step's move, so the force at the end of a step is a function of
+ * where the tip has been (no velocity differenced from the last step, nothing divided by h).
+ *
+ * Scales: the pile tracks the material of a slice slice_width wide (every mass and volume); the
+ * soil force acts on the whole cutting edge, bucket_width wide.
  */
 #include <math.h>
 
 #include "model.h"
 #include "profile.h"
 #include "pile_resistance.h"
+#include "tip_force.h"
 
 #define PI 3.14159265358979323846
 #define SUBSTEP_CELL_FRACTION 0.25 /* largest tip move per substep, in cells */
 #define MAX_SUBSTEPS 4096          /* a jump longer than 1024 cells is cut in coarser pieces */
 #define RELAX_MAX_SWEEPS 20000     /* bound per substep; a 1.9 m x 4 m trench settles in ~2500 */
-#define LOOK_AHEAD_CELLS 1.5       /* where the force model reads the uncut surface */
 #define CAPACITY_BISECTIONS 100
 #define FULL_FRACTION (1.0 - 1e-12)
 
@@ -51,6 +50,7 @@ typedef struct {
     double tip_y, tip_z;   /* m, tip position at the end of the last step */
     int held;              /* cell held by the buried bucket at the last relaxation, or -1 */
     int settled;           /* the last relaxation converged: nothing to do until a change */
+    Mobilization mobilized; /* how far the soil's resistances are mobilised (tip_force.h) */
 } PileState;
 
 const size_t model_state_size = sizeof(PileState);
@@ -65,7 +65,10 @@ static const char *check_parameters(const double *v)
 {
     if (!(v[VR_n_cells] == N_h)) return "n_cells must equal the number of profile cells h[]";
     if (!(v[VR_density] > 0.0 && isfinite(v[VR_density]))) return "density must be > 0 kg/m3";
-    if (!(v[VR_width] > 0.0 && isfinite(v[VR_width]))) return "width must be > 0 m";
+    if (!(v[VR_slice_width] > 0.0 && isfinite(v[VR_slice_width])))
+        return "slice_width must be > 0 m";
+    if (!(v[VR_bucket_width] > 0.0 && isfinite(v[VR_bucket_width])))
+        return "bucket_width must be > 0 m";
     if (!(isfinite(v[VR_y_min]) && isfinite(v[VR_y_max]) && v[VR_y_max] > v[VR_y_min]))
         return "y_max must be greater than y_min (both finite)";
     if (!(isfinite(v[VR_z_surface0]) && isfinite(v[VR_z_floor])
@@ -79,8 +82,8 @@ static const char *check_parameters(const double *v)
     if (!(v[VR_capacity] > 0.0 && isfinite(v[VR_capacity]))) return "capacity must be > 0 m3";
     if (!(v[VR_repose_angle] > 0.0 && v[VR_repose_angle] < 0.5 * PI))
         return "repose_angle must lie in (0, pi/2) rad";
-    if (!(v[VR_force_speed_ramp] > 0.0 && isfinite(v[VR_force_speed_ramp])))
-        return "force_speed_ramp must be > 0 m/s";
+    if (!(v[VR_mobilization_length] > 0.0 && isfinite(v[VR_mobilization_length])))
+        return "mobilization_length must be > 0 m";
     return pile_check_resistance(v);
 }
 
@@ -97,7 +100,7 @@ static const char *check_inputs(const double *v)
 static double cut_into_bucket(const double *v, PileState *s, const Grid *g, double ya, double za,
                             double yb, double zb)
 {
-    const double capacity = v[VR_capacity], width = v[VR_width];
+    const double capacity = v[VR_capacity], width = v[VR_slice_width];
     if (s->bucket_volume >= FULL_FRACTION * capacity) return 0.0;
     const double free_area = (capacity - s->bucket_volume) / width;
     double lift = 0.0;
@@ -138,9 +141,9 @@ static int held_cell(const PileState *s, const Grid *g, double y, double z)
     return k >= 0 && z < profile_top_near(&s->profile, k) ? k : -1;
 }
 
-static void write_outputs(double *v, const PileState *s, const Grid *g, double vy, double vz)
+static void write_outputs(double *v, PileState *s, const Grid *g, double dy, double dz)
 {
-    const double density = v[VR_density], width = v[VR_width];
+    const double density = v[VR_density], width = v[VR_slice_width];
     const double tip_y = v[VR_tip_y], tip_z = v[VR_tip_z];
     v[VR_bucket_mass] = density * s->bucket_volume;
     v[VR_dumped_mass] = density * s->dumped_volume;
@@ -148,23 +151,11 @@ static void write_outputs(double *v, const PileState *s, const Grid *g, double v
     v[VR_pile_mass] = density * width * profile_area(&s->profile, g);
     v[VR_surface_z_at_tip] = profile_surface_at(&s->profile, g, tip_y);
     for (int i = 0; i < N_h; ++i) v[VR_h_1 + i] = s->profile.h[i];
-
-    const double speed = hypot(vy, vz);
-    const double y_ahead = speed > 0.0 ? tip_y + LOOK_AHEAD_CELLS * g->dy * vy / speed : tip_y;
-    const double depth = fmax(0.0, profile_surface_at(&s->profile, g, y_ahead) - tip_z);
-    v[VR_cut_depth] = depth;
-    v[VR_F_y] = 0.0;
-    v[VR_F_z] = 0.0;
-    if (speed > 0.0 && depth > 0.0) {
-        const double angle = v[VR_bucket_angle];
-        double cos_rake = -(vy * cos(angle) + vz * sin(angle)) / speed;
-        cos_rake = fmin(1.0, fmax(-1.0, cos_rake));
-        const double draft = pile_draft(v, acos(cos_rake), depth);
-        const double ramp = v[VR_force_speed_ramp];
-        const double scale = draft / sqrt(speed * speed + ramp * ramp);
-        v[VR_F_y] = -scale * vy;
-        v[VR_F_z] = -scale * vz;
-    }
+    const TipForce f = tip_force(v, &s->profile, g, tip_y, tip_z, dy, dz, v[VR_bucket_angle],
+                                 &s->mobilized);
+    v[VR_cut_depth] = f.depth;
+    v[VR_F_y] = f.F_y;
+    v[VR_F_z] = f.F_z;
 }
 
 int model_initialize(double *v, void *state, const char **error)
@@ -186,6 +177,7 @@ int model_initialize(double *v, void *state, const char **error)
     s->bucket_volume = s->dumped_volume = s->removed_volume = 0.0;
     s->tip_y = v[VR_tip_y];
     s->tip_z = v[VR_tip_z];
+    s->mobilized.side[0] = s->mobilized.side[1] = s->mobilized.normal = 0.0;
     write_outputs(v, s, &g, 0.0, 0.0);
     return 0;
 }
@@ -195,7 +187,8 @@ int model_do_step(double *v, void *state, double t, double h, const char **error
     PileState *s = state;
     (void)t;
     const char *message = check_inputs(v);
-    if (message == NULL && !(h >= 0.0)) message = "communication step size must be >= 0 s";
+    if (message == NULL && !(h >= 0.0 && isfinite(h)))
+        message = "communication step size must be finite and >= 0 s";
     if (message != NULL) {
         *error = message;
         return 1;
@@ -221,7 +214,6 @@ int model_do_step(double *v, void *state, double t, double h, const char **error
     }
     s->tip_y = y1;
     s->tip_z = z1;
-    const double vy = h > 0.0 ? (y1 - y0) / h : 0.0, vz = h > 0.0 ? (z1 - z0) / h : 0.0;
-    write_outputs(v, s, &g, vy, vz);
+    write_outputs(v, s, &g, y1 - y0, z1 - z0);
     return 0;
 }
