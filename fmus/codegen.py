@@ -6,7 +6,10 @@ import xml.etree.ElementTree as ET
 
 from fmus.table import ModelTable, Variable
 
-__all__ = ["variables_header", "model_description", "SET_INSTANTIATED", "SET_INIT", "SET_STEP"]
+__all__ = [
+    "variables_header", "model_description", "initial_unknowns", "OUTPUT_DEPENDENCIES",
+    "SET_INSTANTIATED", "SET_INIT", "SET_STEP",
+]
 
 # Phases in which fmi2Set* may write a variable (bit mask, mirrored in common/variable_table.h).
 SET_INSTANTIATED, SET_INIT, SET_STEP = 1, 2, 4
@@ -46,6 +49,23 @@ _C_VARIABILITY = {
 }
 
 
+# Every output depends on no input (FMI 2.0 section 2.2.8, 3.0 section 2.4.8): in co-simulation
+# our outputs at a communication point are computed by the step (or the initialization) that
+# reached it; an input set afterwards changes them only in the next step. So an importer needs no
+# algebraic loop between our FMUs, and may read outputs before setting the inputs.
+OUTPUT_DEPENDENCIES = ""
+
+
+def initial_unknowns(table: ModelTable) -> list[Variable]:
+    """FMI 2.0 section 2.2.8 (3.0: 2.4.8): the outputs with initial approx/calculated and all
+    calculated parameters, in table (= index) order. Their dependencies are left out, which
+    declares a dependence on every known: initially an output does depend on parameters and on
+    inputs' start values (a cylinder's force is in equilibrium with its start load)."""
+    return [v for v in table.variables
+            if (v.causality == "output" and v.initial in ("approx", "calculated"))
+            or v.causality == "calculatedParameter"]
+
+
 def set_phases(var: Variable) -> int:
     """When fmi2Set* may write `var` (FMI 2.0 section 4.2.4 state machine)."""
     if var.causality == "input" or (var.causality == "parameter" and var.variability == "tunable"):
@@ -63,6 +83,10 @@ def _c_double(value) -> str:
     if isinstance(value, bool):
         return "1.0" if value else "0.0"
     return repr(float(value))
+
+
+def _c_bound(value, missing: str) -> str:
+    return missing if value is None else repr(float(value))
 
 
 def _c_string(text: str) -> str:
@@ -90,7 +114,8 @@ def variables_header(table: ModelTable, guid: str) -> str:
     for v in table.variables:
         lines.append(
             f"    {{{_c_string(v.name)}, {_C_TYPE[v.type]}, {_C_CAUSALITY[v.causality]}, "
-            f"{_C_VARIABILITY[v.variability]}, {set_phases(v)}, {_c_double(v.start)}}},")
+            f"{_C_VARIABILITY[v.variability]}, {set_phases(v)}, {_c_double(v.start)}, "
+            f"{_c_bound(v.min, '-HUGE_VAL')}, {_c_bound(v.max, 'HUGE_VAL')}}},")
     lines += ["};", "", "#endif", ""]
     return "\n".join(lines)
 
@@ -175,15 +200,12 @@ def model_description(table: ModelTable, guid: str, sources: list[str],
     if outputs:
         element = ET.SubElement(structure, "Outputs")
         for v in outputs:
-            ET.SubElement(element, "Unknown", {"index": str(v.value_reference + 1)})
-    # FMI 2.0 section 2.2.8: outputs with initial approx/calculated and all calculated
-    # parameters are initial unknowns, in ascending index order.
-    initial = [v for v in table.variables
-               if (v.causality == "output" and v.initial in ("approx", "calculated"))
-               or v.causality == "calculatedParameter"]
+            ET.SubElement(element, "Unknown", {"index": str(v.value_reference + 1),
+                                               "dependencies": OUTPUT_DEPENDENCIES})
+    initial = initial_unknowns(table)
     if initial:
         element = ET.SubElement(structure, "InitialUnknowns")
-        for v in initial:
+        for v in initial:  # no dependencies attribute: FMI 2.0 reads "depends on every known"
             ET.SubElement(element, "Unknown", {"index": str(v.value_reference + 1)})
 
     ET.indent(root)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 
-from fmus.codegen import BASE_UNITS
+from fmus.codegen import BASE_UNITS, OUTPUT_DEPENDENCIES, initial_unknowns
 from fmus.table import ModelTable, Variable
 
 __all__ = ["model_description_fmi3", "FMI3_TYPES"]
@@ -101,16 +101,15 @@ def model_description_fmi3(table: ModelTable, token: str, sources: list[str],
     for v in table.variables:
         _variable(model_variables, v)
 
-    # FMI 3.0 section 2.4.8: outputs in ModelVariables order; initial unknowns are the outputs
-    # with initial approx/calculated and the calculated parameters.
+    # FMI 3.0 section 2.4.8: outputs in ModelVariables order, depending on no input (see
+    # codegen.OUTPUT_DEPENDENCIES); then the initial unknowns, depending on every known.
     structure = ET.SubElement(root, "ModelStructure")
     for v in table.variables:
         if v.causality == "output":
-            ET.SubElement(structure, "Output", {"valueReference": str(v.value_reference)})
-    for v in table.variables:
-        if (v.causality == "output" and v.initial in ("approx", "calculated")) \
-                or v.causality == "calculatedParameter":
-            ET.SubElement(structure, "InitialUnknown", {"valueReference": str(v.value_reference)})
+            ET.SubElement(structure, "Output", {"valueReference": str(v.value_reference),
+                                                "dependencies": OUTPUT_DEPENDENCIES})
+    for v in initial_unknowns(table):
+        ET.SubElement(structure, "InitialUnknown", {"valueReference": str(v.value_reference)})
 
     ET.indent(root)
     text = ET.tostring(root, encoding="unicode")

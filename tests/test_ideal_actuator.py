@@ -46,9 +46,12 @@ def test_step_response_is_the_exact_first_order_solution(fmu, u, step):
     np.testing.assert_allclose(r["x"], x, rtol=0, atol=1e-13)
 
 
-def test_command_is_clamped_to_plus_minus_one(fmu):
-    r = run(fmu, np.full(500, 3.0))
-    assert r["v"][-1] == pytest.approx(V_MAX * (1 - np.exp(-0.5 / TAU)), rel=1e-12)
+def test_full_command_is_accepted_and_one_outside_its_range_refused(fmu, capfd):
+    r = run(fmu, np.full(500, -1.0))
+    assert r["v"][-1] == pytest.approx(-V_MAX * (1 - np.exp(-0.5 / TAU)), rel=1e-12)
+    with pytest.raises(FMICallException, match="fmi2SetReal"):
+        run(fmu, np.full(5, 1.0 + 1e-9))
+    assert "value of 'u' lies outside its range [-1, 1]" in capfd.readouterr().out
 
 
 def test_end_stops_are_inelastic_and_hold(fmu):
@@ -84,8 +87,15 @@ def test_load_is_reported_and_does_not_change_the_motion(fmu):
     np.testing.assert_array_equal(loaded["F"][1:], load)
 
 
-@pytest.mark.parametrize("name, value", [("tau", 0.0), ("v_max", -1.0), ("stroke", 0.0),
-                                         ("x0", 1.5), ("x0", -0.1)])
+@pytest.mark.parametrize("name, value", [("tau", 0.0), ("v_max", 0.0), ("stroke", 0.0),
+                                         ("x0", 1.5)])
 def test_invalid_parameters_fail_initialization(fmu, name, value):
     with pytest.raises(FMICallException, match="fmi2ExitInitializationMode"):
+        simulate_fmu(str(fmu), stop_time=0.01, start_values={name: value})
+
+
+@pytest.mark.parametrize("name, value", [("v_max", -1.0), ("x0", -0.1), ("tau", 1e4),
+                                         ("F_ext", 2e9)])
+def test_values_outside_the_table_range_are_refused_when_set(fmu, name, value):
+    with pytest.raises(FMICallException, match="fmi2SetReal"):
         simulate_fmu(str(fmu), stop_time=0.01, start_values={name: value})

@@ -58,7 +58,8 @@ def mm_actuator(tmp_path_factory) -> Path:
         name = re.search(r'^name = "(\w+)"', block, re.M)
         if name and name.group(1) in MM:
             block = re.sub(r'^unit = ".*"$', f'unit = "{MM[name.group(1)]}"', block, flags=re.M)
-            block = re.sub(r"^start = (.*)$", lambda m: f"start = {float(m.group(1)) * 1000!r}",
+            block = re.sub(r"^(start|min|max) = (.*)$",
+                           lambda m: f"{m.group(1)} = {float(m.group(2)) * 1000!r}",
                            block, flags=re.M)
             blocks[i] = block
     (folder / "variables.toml").write_text("[[variable]]".join(blocks))

@@ -109,6 +109,17 @@ int model_initialize(double *v, void *state, const char **error)
     return 0;
 }
 
+/* The state from outside (a deserialized FMU state) must be one the model can continue. */
+int model_check_state(const double *v, const void *state, const char **error)
+{
+    const State *s = state;
+    if (!(isfinite(s->v) && s->x >= 0.0 && s->x <= v[VR_stroke])) {
+        *error = "x must lie in [0, stroke] and v be finite";
+        return 1;
+    }
+    return 0;
+}
+
 int model_do_step(double *v, void *state, double t, double h, const char **error)
 {
     State *s = state;

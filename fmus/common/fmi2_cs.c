@@ -15,10 +15,7 @@
 #include <string.h>
 
 #include "instance.h"
-
-static const char *const PHASE_NAMES[] = {
-    "instantiated", "initialization mode", "step mode", "terminated", "error"
-};
+#include "layer_core.h"
 
 size_t excosim_state_bytes(void) { return model_state_size > 0 ? model_state_size : 1; }
 
@@ -32,24 +29,6 @@ void excosim_log(const Instance *c, fmi2Status status, const char *category, con
     va_end(args);
     /* Pass the text as an argument so a '%' in a name never reaches the format. */
     c->logger(c->environment, c->name, status, category, "%s", text);
-}
-
-/* Returns nonzero (and logs) when `c` is not in one of the phases in `allowed` (bit per Phase). */
-static int wrong_phase(Instance *c, unsigned allowed, const char *function) {
-    if (allowed & (1u << c->phase)) return 0;
-    LOG_ERROR(c, "%s must not be called in %s", function, PHASE_NAMES[c->phase]);
-    return 1;
-}
-
-#define PH(p) (1u << (p))
-
-static void set_start_values(Instance *c) {
-    int i;
-    for (i = 0; i < N_VARIABLES; i++) c->v[i] = VARIABLES[i].start;
-    memset(c->state, 0, excosim_state_bytes());
-    c->time = 0.0;
-    c->start_time = 0.0;
-    c->phase = PHASE_INSTANTIATED;
 }
 
 /* ---- inquiry, instantiation ---------------------------------------------------------------- */
@@ -83,32 +62,13 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
                   fmuGUID != NULL ? fmuGUID : "(null)", MODEL_GUID);
         return NULL;
     }
-    c = calloc(1, sizeof *c);
+    c = instance_new(&probe, instanceName, loggingOn != fmi2False);
     if (c == NULL) return NULL;
-    c->name = malloc(strlen(instanceName) + 1);
-    c->state = calloc(1, excosim_state_bytes());
-    if (c->name == NULL || c->state == NULL) {
-        free(c->name);
-        free(c->state);
-        free(c);
-        return NULL;
-    }
-    strcpy(c->name, instanceName);
-    c->logger = probe.logger;
-    c->environment = probe.environment;
-    c->logging_on = loggingOn != fmi2False;
-    set_start_values(c);
     LOG_EVENT(c, "instantiated %s", MODEL_IDENTIFIER_STRING);
     return c;
 }
 
-void fmi2FreeInstance(fmi2Component component) {
-    Instance *c = component;
-    if (c == NULL) return;
-    free(c->state);
-    free(c->name);
-    free(c);
-}
+void fmi2FreeInstance(fmi2Component component) { instance_free(component); }
 
 fmi2Status fmi2SetDebugLogging(fmi2Component component, fmi2Boolean loggingOn,
                                size_t nCategories, const fmi2String categories[]) {
@@ -164,16 +124,10 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component component) {
 
 fmi2Status fmi2ExitInitializationMode(fmi2Component component) {
     Instance *c = component;
-    const char *error = "unknown error";
-    if (c == NULL || wrong_phase(c, PH(PHASE_INITIALIZATION), "fmi2ExitInitializationMode")) {
+    if (c == NULL || wrong_phase(c, PH(PHASE_INITIALIZATION), "fmi2ExitInitializationMode") ||
+        exit_initialization(c, "fmi2ExitInitializationMode") != 0) {
         return fmi2Error;
     }
-    if (model_initialize(c->v, c->state, &error) != 0) {
-        c->phase = PHASE_ERROR;
-        LOG_ERROR(c, "initialization failed: %s", error);
-        return fmi2Error;
-    }
-    c->phase = PHASE_STEP;
     LOG_EVENT(c, "initialized at t = %g s", c->time);
     return fmi2OK;
 }
@@ -220,28 +174,15 @@ static int bad_access(Instance *c, const fmi2ValueReference vr[], size_t nvr, co
     return 0;
 }
 
-/* Checks that every variable in vr may be set now (FMI 2.0 section 4.2.4). */
-static int not_settable(Instance *c, const fmi2ValueReference vr[], size_t nvr,
-                        const char *function) {
-    static const int phase_bit[] = {SET_INSTANTIATED, SET_INIT, SET_STEP, 0, 0};
-    size_t i;
-    for (i = 0; i < nvr; i++) {
-        const excosim_variable *var = &VARIABLES[vr[i]];
-        if (!(var->set_phases & phase_bit[c->phase])) {
-            LOG_ERROR(c, "%s: variable '%s' cannot be set in %s", function, var->name,
-                      PHASE_NAMES[c->phase]);
-            return 1;
-        }
-    }
-    return 0;
-}
-
 fmi2Status fmi2GetReal(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
                        fmi2Real value[]) {
     Instance *c = component;
     size_t i;
-    if (c == NULL || bad_access(c, vr, nvr, value, VT_REAL, "fmi2GetReal")) return fmi2Error;
-    for (i = 0; i < nvr; i++) value[i] = c->v[vr[i]];
+    if (c == NULL || bad_access(c, vr, nvr, value, VT_REAL, "fmi2GetReal") ||
+        prepare_get(c, vr, nvr, "fmi2GetReal")) {
+        return fmi2Error;
+    }
+    for (i = 0; i < nvr; i++) value[i] = value_of(c, vr[i]);
     return fmi2OK;
 }
 
@@ -249,8 +190,11 @@ fmi2Status fmi2GetInteger(fmi2Component component, const fmi2ValueReference vr[]
                           fmi2Integer value[]) {
     Instance *c = component;
     size_t i;
-    if (c == NULL || bad_access(c, vr, nvr, value, VT_INTEGER, "fmi2GetInteger")) return fmi2Error;
-    for (i = 0; i < nvr; i++) value[i] = (fmi2Integer)c->v[vr[i]];
+    if (c == NULL || bad_access(c, vr, nvr, value, VT_INTEGER, "fmi2GetInteger") ||
+        prepare_get(c, vr, nvr, "fmi2GetInteger")) {
+        return fmi2Error;
+    }
+    for (i = 0; i < nvr; i++) value[i] = (fmi2Integer)value_of(c, vr[i]);
     return fmi2OK;
 }
 
@@ -258,8 +202,11 @@ fmi2Status fmi2GetBoolean(fmi2Component component, const fmi2ValueReference vr[]
                           fmi2Boolean value[]) {
     Instance *c = component;
     size_t i;
-    if (c == NULL || bad_access(c, vr, nvr, value, VT_BOOLEAN, "fmi2GetBoolean")) return fmi2Error;
-    for (i = 0; i < nvr; i++) value[i] = c->v[vr[i]] != 0.0 ? fmi2True : fmi2False;
+    if (c == NULL || bad_access(c, vr, nvr, value, VT_BOOLEAN, "fmi2GetBoolean") ||
+        prepare_get(c, vr, nvr, "fmi2GetBoolean")) {
+        return fmi2Error;
+    }
+    for (i = 0; i < nvr; i++) value[i] = value_of(c, vr[i]) != 0.0 ? fmi2True : fmi2False;
     return fmi2OK;
 }
 
@@ -272,12 +219,10 @@ fmi2Status fmi2SetReal(fmi2Component component, const fmi2ValueReference vr[], s
         return fmi2Error;
     }
     for (i = 0; i < nvr; i++) {
-        if (!isfinite(value[i])) {
-            LOG_ERROR(c, "fmi2SetReal: value of '%s' is not finite", VARIABLES[vr[i]].name);
-            return fmi2Error;
-        }
+        if (bad_value(c, vr[i], value[i], "fmi2SetReal")) return fmi2Error;
     }
     for (i = 0; i < nvr; i++) c->v[vr[i]] = value[i];
+    values_changed(c);
     return fmi2OK;
 }
 
@@ -289,7 +234,11 @@ fmi2Status fmi2SetInteger(fmi2Component component, const fmi2ValueReference vr[]
         not_settable(c, vr, nvr, "fmi2SetInteger")) {
         return fmi2Error;
     }
+    for (i = 0; i < nvr; i++) {
+        if (bad_value(c, vr[i], (double)value[i], "fmi2SetInteger")) return fmi2Error;
+    }
     for (i = 0; i < nvr; i++) c->v[vr[i]] = (double)value[i];
+    values_changed(c);
     return fmi2OK;
 }
 
@@ -302,6 +251,7 @@ fmi2Status fmi2SetBoolean(fmi2Component component, const fmi2ValueReference vr[]
         return fmi2Error;
     }
     for (i = 0; i < nvr; i++) c->v[vr[i]] = value[i] != fmi2False ? 1.0 : 0.0;
+    values_changed(c);
     return fmi2OK;
 }
 
@@ -336,35 +286,11 @@ fmi2Status fmi2DoStep(fmi2Component component, fmi2Real currentCommunicationPoin
                       fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
     Instance *c = component;
-    const char *error = "unknown error";
-    int i;
     (void)noSetFMUStatePriorToCurrentPoint;
-    if (c == NULL || wrong_phase(c, PH(PHASE_STEP), "fmi2DoStep")) return fmi2Error;
-    if (!(communicationStepSize > 0.0) || !isfinite(communicationStepSize)) {
-        LOG_ERROR(c, "fmi2DoStep: communicationStepSize must be > 0, got %g",
-                  communicationStepSize);
+    if (c == NULL || wrong_phase(c, PH(PHASE_STEP), "fmi2DoStep") ||
+        do_step(c, currentCommunicationPoint, communicationStepSize, "fmi2DoStep") != 0) {
         return fmi2Error;
     }
-    /* The master's clock is authoritative; only a real mismatch (not round-off) is an error. */
-    if (fabs(currentCommunicationPoint - c->time) > 1e-9 * fmax(1.0, fabs(c->time))) {
-        LOG_ERROR(c, "fmi2DoStep: currentCommunicationPoint %.17g differs from the FMU time %.17g",
-                  currentCommunicationPoint, c->time);
-        return fmi2Error;
-    }
-    if (model_do_step(c->v, c->state, currentCommunicationPoint, communicationStepSize, &error)) {
-        c->phase = PHASE_ERROR;
-        LOG_ERROR(c, "step at t = %g s failed: %s", currentCommunicationPoint, error);
-        return fmi2Error;
-    }
-    for (i = 0; i < N_VARIABLES; i++) {
-        if (!isfinite(c->v[i])) {
-            c->phase = PHASE_ERROR;
-            LOG_ERROR(c, "step at t = %g s produced a non-finite '%s'", currentCommunicationPoint,
-                      VARIABLES[i].name);
-            return fmi2Error;
-        }
-    }
-    c->time = currentCommunicationPoint + communicationStepSize;
     return fmi2OK;
 }
 

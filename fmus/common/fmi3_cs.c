@@ -16,10 +16,8 @@
 #include <string.h>
 
 #include "fmi3_instance.h"
+#include "layer_core.h"
 
-static const char *const PHASE_NAMES[] = {
-    "instantiated", "initialization mode", "step mode", "terminated", "error"
-};
 static const char *const TYPE_NAMES[] = {"Float64", "Int32", "Boolean"};
 
 size_t excosim_state_bytes(void) { return model_state_size > 0 ? model_state_size : 1; }
@@ -33,22 +31,6 @@ void excosim_log(const Instance *c, fmi3Status status, const char *category, con
     vsnprintf(text, sizeof text, format, args);
     va_end(args);
     c->logger(c->environment, status, category, text); /* FMI 3 takes a plain message */
-}
-
-#define PH(p) (1u << (p))
-
-static int wrong_phase(Instance *c, unsigned allowed, const char *function) {
-    if (allowed & (1u << c->phase)) return 0;
-    LOG_ERROR(c, "%s must not be called in %s", function, PHASE_NAMES[c->phase]);
-    return 1;
-}
-
-static void set_start_values(Instance *c) {
-    int i;
-    for (i = 0; i < N_VARIABLES; i++) c->v[i] = VARIABLES[i].start;
-    memset(c->state, 0, excosim_state_bytes());
-    c->time = c->start_time = 0.0;
-    c->phase = PHASE_INSTANTIATED;
 }
 
 const char *fmi3GetVersion(void) { return fmi3Version; }
@@ -80,32 +62,13 @@ fmi3Instance fmi3InstantiateCoSimulation(
                   instantiationToken != NULL ? instantiationToken : "(null)", MODEL_GUID);
         return NULL;
     }
-    c = calloc(1, sizeof *c);
+    c = instance_new(&probe, instanceName, loggingOn);
     if (c == NULL) return NULL;
-    c->name = malloc(strlen(instanceName) + 1);
-    c->state = calloc(1, excosim_state_bytes());
-    if (c->name == NULL || c->state == NULL) {
-        free(c->name);
-        free(c->state);
-        free(c);
-        return NULL;
-    }
-    strcpy(c->name, instanceName);
-    c->logger = logMessage;
-    c->environment = instanceEnvironment;
-    c->logging_on = loggingOn;
-    set_start_values(c);
     LOG_EVENT(c, "instantiated %s", MODEL_IDENTIFIER_STRING);
     return c;
 }
 
-void fmi3FreeInstance(fmi3Instance instance) {
-    Instance *c = instance;
-    if (c == NULL) return;
-    free(c->state);
-    free(c->name);
-    free(c);
-}
+void fmi3FreeInstance(fmi3Instance instance) { instance_free(instance); }
 
 fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn, size_t nCategories,
                                const fmi3String categories[]) {
@@ -134,15 +97,11 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
 
 fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
     Instance *c = instance;
-    const char *error = "unknown error";
-    if (c == NULL || wrong_phase(c, PH(PHASE_INITIALIZATION), "fmi3ExitInitializationMode"))
-        return fmi3Error;
-    if (model_initialize(c->v, c->state, &error) != 0) {
-        c->phase = PHASE_ERROR;
-        LOG_ERROR(c, "initialization failed: %s", error);
+    if (c == NULL || wrong_phase(c, PH(PHASE_INITIALIZATION), "fmi3ExitInitializationMode") ||
+        exit_initialization(c, "fmi3ExitInitializationMode") != 0) {
         return fmi3Error;
     }
-    c->phase = PHASE_STEP;
+    LOG_EVENT(c, "initialized at t = %g s", c->time);
     return fmi3OK;
 }
 
@@ -167,7 +126,7 @@ fmi3Status fmi3Reset(fmi3Instance instance) {
 #define VR_TIME N_VARIABLES
 
 static double value_at(const Instance *c, fmi3ValueReference vr) {
-    return vr == VR_TIME ? c->time : c->v[vr];
+    return vr == VR_TIME ? c->time : value_of(c, vr);
 }
 
 static int bad_access(Instance *c, const fmi3ValueReference vr[], size_t nvr, const void *values,
@@ -197,46 +156,30 @@ static int bad_access(Instance *c, const fmi3ValueReference vr[], size_t nvr, co
     return 0;
 }
 
-static int not_settable(Instance *c, const fmi3ValueReference vr[], size_t nvr,
-                        const char *function) {
-    static const int phase_bit[] = {SET_INSTANTIATED, SET_INIT, SET_STEP, 0, 0};
-    size_t i;
-    for (i = 0; i < nvr; i++) {
-        if (!(VARIABLES[vr[i]].set_phases & phase_bit[c->phase])) {
-            LOG_ERROR(c, "%s: variable '%s' cannot be set in %s", function, VARIABLES[vr[i]].name,
-                      PHASE_NAMES[c->phase]);
-            return 1;
-        }
-    }
-    return 0;
-}
-
 /* One getter and one setter per type; CONVERT_GET / CONVERT_SET map the stored double. */
-#define ACCESSORS(Name, T, VT, CONVERT_GET, CONVERT_SET, CHECK)                                   \
+#define ACCESSORS(Name, T, VT, CONVERT_GET, CONVERT_SET)                                        \
     fmi3Status fmi3Get##Name(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, \
                              T values[], size_t nValues) {                                      \
         Instance *c = instance;                                                                 \
         size_t i;                                                                               \
-        if (c == NULL || bad_access(c, vr, nvr, values, nValues, VT, 1, "fmi3Get" #Name))          \
+        if (c == NULL || bad_access(c, vr, nvr, values, nValues, VT, 1, "fmi3Get" #Name)        \
+            || prepare_get(c, vr, nvr, "fmi3Get" #Name))                                        \
             return fmi3Error;                                                                   \
-        for (i = 0; i < nvr; i++) values[i] = CONVERT_GET(value_at(c, vr[i]));                         \
+        for (i = 0; i < nvr; i++) values[i] = CONVERT_GET(value_at(c, vr[i]));                  \
         return fmi3OK;                                                                          \
     }                                                                                           \
     fmi3Status fmi3Set##Name(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, \
                              const T values[], size_t nValues) {                                \
         Instance *c = instance;                                                                 \
         size_t i;                                                                               \
-        if (c == NULL || bad_access(c, vr, nvr, values, nValues, VT, 0, "fmi3Set" #Name)           \
+        if (c == NULL || bad_access(c, vr, nvr, values, nValues, VT, 0, "fmi3Set" #Name)        \
             || not_settable(c, vr, nvr, "fmi3Set" #Name))                                       \
             return fmi3Error;                                                                   \
         for (i = 0; i < nvr; i++) {                                                             \
-            if (!(CHECK(values[i]))) {                                                          \
-                LOG_ERROR(c, "fmi3Set" #Name ": value of '%s' is not finite",                   \
-                          VARIABLES[vr[i]].name);                                               \
-                return fmi3Error;                                                               \
-            }                                                                                   \
+            if (bad_value(c, vr[i], CONVERT_SET(values[i]), "fmi3Set" #Name)) return fmi3Error; \
         }                                                                                       \
         for (i = 0; i < nvr; i++) c->v[vr[i]] = CONVERT_SET(values[i]);                         \
+        values_changed(c);                                                                      \
         return fmi3OK;                                                                          \
     }
 
@@ -244,11 +187,10 @@ static int not_settable(Instance *c, const fmi3ValueReference vr[], size_t nvr,
 #define TO_INT32(x) ((fmi3Int32)(x))
 #define TO_BOOL(x) ((x) != 0.0)
 #define FROM_BOOL(x) ((x) ? 1.0 : 0.0)
-#define ANY(x) ((void)(x), 1)
 
-ACCESSORS(Float64, fmi3Float64, VT_REAL, AS_IS, AS_IS, isfinite)
-ACCESSORS(Int32, fmi3Int32, VT_INTEGER, TO_INT32, (double), ANY)
-ACCESSORS(Boolean, fmi3Boolean, VT_BOOLEAN, TO_BOOL, FROM_BOOL, ANY)
+ACCESSORS(Float64, fmi3Float64, VT_REAL, AS_IS, AS_IS)
+ACCESSORS(Int32, fmi3Int32, VT_INTEGER, TO_INT32, (double))
+ACCESSORS(Boolean, fmi3Boolean, VT_BOOLEAN, TO_BOOL, FROM_BOOL)
 
 /* ---- stepping ------------------------------------------------------------------------------- */
 
@@ -258,39 +200,15 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
                       fmi3Boolean *eventHandlingNeeded, fmi3Boolean *terminateSimulation,
                       fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime) {
     Instance *c = instance;
-    const char *error = "unknown error";
-    int i;
     (void)noSetFMUStatePriorToCurrentPoint;
     if (c == NULL || wrong_phase(c, PH(PHASE_STEP), "fmi3DoStep")) return fmi3Error;
     if (eventHandlingNeeded != NULL) *eventHandlingNeeded = fmi3False;
     if (terminateSimulation != NULL) *terminateSimulation = fmi3False;
     if (earlyReturn != NULL) *earlyReturn = fmi3False;
     if (lastSuccessfulTime != NULL) *lastSuccessfulTime = c->time;
-    if (!(communicationStepSize > 0.0) || !isfinite(communicationStepSize)) {
-        LOG_ERROR(c, "fmi3DoStep: communicationStepSize must be > 0, got %g",
-                  communicationStepSize);
+    if (do_step(c, currentCommunicationPoint, communicationStepSize, "fmi3DoStep") != 0) {
         return fmi3Error;
     }
-    /* The importer's clock is authoritative; only a real mismatch (not round-off) is an error. */
-    if (fabs(currentCommunicationPoint - c->time) > 1e-9 * fmax(1.0, fabs(c->time))) {
-        LOG_ERROR(c, "fmi3DoStep: currentCommunicationPoint %.17g differs from the FMU time %.17g",
-                  currentCommunicationPoint, c->time);
-        return fmi3Error;
-    }
-    if (model_do_step(c->v, c->state, currentCommunicationPoint, communicationStepSize, &error)) {
-        c->phase = PHASE_ERROR;
-        LOG_ERROR(c, "step at t = %g s failed: %s", currentCommunicationPoint, error);
-        return fmi3Error;
-    }
-    for (i = 0; i < N_VARIABLES; i++) {
-        if (!isfinite(c->v[i])) {
-            c->phase = PHASE_ERROR;
-            LOG_ERROR(c, "step at t = %g s produced a non-finite '%s'", currentCommunicationPoint,
-                      VARIABLES[i].name);
-            return fmi3Error;
-        }
-    }
-    c->time = currentCommunicationPoint + communicationStepSize;
     if (lastSuccessfulTime != NULL) *lastSuccessfulTime = c->time;
     return fmi3OK;
 }

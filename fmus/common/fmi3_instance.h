@@ -23,6 +23,12 @@ typedef struct {
     fmi3InstanceEnvironment environment;
     char *name;
     void *state; /* model_state_size bytes, at least 1 */
+    /* Scratch values and state (layer_core.h): the initial values computed in initialization
+     * mode (valid while scratch_fresh), and the step being taken, so a failed one changes
+     * nothing. */
+    double scratch_v[N_VARIABLES];
+    void *scratch_state;
+    int scratch_fresh;
 } Instance;
 
 size_t excosim_state_bytes(void);

@@ -1,9 +1,11 @@
 /*
  * Types of the variable table that the builder generates into variables.h. The shared FMI layer
- * reads it to check value references, types and when a variable may be set.
+ * reads it to check value references, types, ranges and when a variable may be set.
  */
 #ifndef EXCOSIM_VARIABLE_TABLE_H
 #define EXCOSIM_VARIABLE_TABLE_H
+
+#include <math.h> /* HUGE_VAL: the bound of a variable the table gives no min or max */
 
 typedef enum { VT_REAL, VT_INTEGER, VT_BOOLEAN } excosim_type;
 
@@ -27,6 +29,7 @@ typedef struct {
     excosim_variability variability;
     int set_phases;
     double start; /* 0 where the table gives no start */
+    double min, max; /* the table's min and max; -HUGE_VAL and HUGE_VAL where it gives none */
 } excosim_variable;
 
 #endif
