@@ -20,9 +20,9 @@ reset period (it digs fresh ground at the default depth, so it repeats period 1'
 
 A campaign that fails (invalid parameters, runtime error) scores FAIL_SCORE = 100 instead.
 
-Committed scenario (`--score`): period 1 8.50 kg, 1 miss (period 2, 12.5 kg), reset period 9
-(the reset after period 8), 12 of 18 counted periods within +-3 kg, score 1.19 (misses 1 +
-near 0.19); tests/test_calibration.py checks these figures.
+Committed scenario (`--score`): period 1 9.04 kg, 4 misses (periods 2, 4, 5, 17), reset period 13
+(the reset after period 12), 13 of 18 counted periods within +-3 kg, score 4.23 (misses 4 + first
+0.01 + near 0.22); tests/test_calibration.py checks these figures.
 
 Parameters (scenario keys as for `--set`; bounds keep each value physical and the search small):
 
@@ -43,10 +43,9 @@ optimum is narrow: dy_0 = 2.75 m scores one miss more than 2.8 m).
 Search: scipy differential_evolution (polish=False, the committed point in its initial
 population via x0, campaigns on --workers processes), then bounded Nelder-Mead from its best
 point (serial, --nm-maxfev campaigns, initial simplex steps of 2 % of each bound's range). The
-result is the best campaign seen, so it never scores worse than the start point. The default
-budget (popsize 2 x 8 parameters = 16 per generation, 4 generations + the initial population,
-30 Nelder-Mead steps: about 110 campaigns) took 5 min 9 s on 2 busy cores (2-5 s a campaign);
-from the committed values it found 1.1664 (still 1 miss, 13 of 18 within +-3 kg).
+result is the best campaign seen, so it never scores worse than the start point. With the
+corrected pile physics, `--maxiter 6 --popsize 3 --nm-maxfev 40` (207 campaigns, 404 s on 2 busy
+cores) went from 6.26 to the committed 4.23 (4 misses); the repose angle ended at its bound.
 Bad arguments: one line on stderr, exit 2.
 """
 

@@ -1,8 +1,8 @@
 """06 - The Pile FMU on its own: drag the bucket tip through the ground and weigh what it took.
 
 The tip plunges at y = -10 m, drags 0.2 m deep to y = -8.5 m and lifts out; the swept material
-enters the bucket (mass = density * slice_width * area), the trench walls slump to the angle of repose,
-and mass is conserved to round-off: pile + bucket + dumped = initial.
+enters the bucket (mass = density * slice_width * area), the trench walls slump to the angle of
+repose, and mass is conserved to round-off: pile + bucket + dumped = initial.
 """
 
 import numpy as np

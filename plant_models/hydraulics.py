@@ -114,8 +114,9 @@ LAB_SAND_DENSITY = 1600.0  # kg/m^3, the lab sandbox's sand (the Pile FMU's defa
 def _lab_pile() -> dict[str, float]:
     s = presets.LAB_SCALE
     return {"y_min": -13.0 * s, "y_max": -2.0 * s, "z_floor": -5.0 * s,
-            "heap_center_y": -9.0 * s, "heap_half_width": 2.0 * s, "slice_width": presets.LAB_WIDTH_M,
-            "bucket_width": presets.LAB_WIDTH_M, "edge_thickness": 0.04 * s,
+            "heap_center_y": -9.0 * s, "heap_half_width": 2.0 * s,
+            "slice_width": presets.LAB_WIDTH_M, "bucket_width": presets.LAB_WIDTH_M,
+            "edge_thickness": 0.04 * s,
             "density": LAB_SAND_DENSITY, "capacity": presets.LAB_MAX_LOAD_KG / LAB_SAND_DENSITY,
             "mobilization_length": 0.02 * s}
 

@@ -9,11 +9,13 @@ reset between periods 8 and 14, and over periods 2-20 (the reset period left out
 ground at the default depth, so it repeats period 1's error) at most one error beyond +-5 kg.
 The campaign runs once (a few seconds) and is shared by the tests.
 
-All of them hold on the `paper` machine with its 3.18 m long stick (plant_models.presets): the
-planned path stays inside the stick's range down to z_D = -2.30 m below y = -9 m, so the reset
-comes after period 8; the scenario's calibrated values keep every period but period 2 within
-+-5 kg (12 of 18 within +-3 kg). That calibration is narrow: its notes in the scenario file say
-how it was found and which nearby values fail.
+On the `paper` machine with its 3.18 m long stick (plant_models.presets) the planned path stays
+inside the stick's range down to z_D = -2.30 m below y = -9 m. The paper's error criterion is
+NOT met since the pile's physics was corrected (soil force in the surface frame on the whole
+bucket edge, a slope model that agrees with the soil's strength): the best calibration found
+(207 campaigns, notes in the scenario file) keeps 14 of 18 periods within +-5 kg, four beyond
+(periods 2, 4, 5, 17), 13 within +-3 kg. MAX_MISSES pins that, so a change that makes it worse
+fails; the paper's value is PAPER_MAX_MISSES.
 """
 
 from pathlib import Path
@@ -27,11 +29,19 @@ from orchestrator.scenario import load_scenario
 SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "paper-2020.toml"
 TARGET_KG = 30.0  # section 3.2
 FIRST_PERIOD_KG = 8.5  # section 3.2
+PAPER_MAX_MISSES = 1  # section 3.2: "about 5 kg, but this error occurs only in one period"
+MAX_MISSES = 4  # the best calibration found with the corrected pile physics
 
 
 @pytest.fixture(scope="module")
-def campaign():
-    return run_campaign(load_scenario(SCENARIO))
+def logged(tmp_path_factory):
+    log = tmp_path_factory.mktemp("paper") / "run.mcap"
+    return run_campaign(load_scenario(SCENARIO), log_path=log), log
+
+
+@pytest.fixture(scope="module")
+def campaign(logged):
+    return logged[0]
 
 
 def test_all_twenty_periods_are_dug(campaign):
@@ -58,10 +68,11 @@ def test_the_reset_and_shift_comes_between_periods_8_and_14(campaign):
     assert len(resets) == 1 and 8 <= resets[0] <= 14, _figures(campaign)
 
 
-def test_after_period_1_the_error_stays_within_5_kg_but_once(campaign):
+def test_after_period_1_the_error_stays_within_5_kg_but_in_max_misses_periods(campaign):
     errors = [r["error_kg"] for r in campaign.records if r["k"] >= 2 and not r["reset"]]
     beyond = [e for e in errors if abs(e) > 5.0]
-    assert len(beyond) <= 1, _figures(campaign)
+    assert len(beyond) <= MAX_MISSES, _figures(campaign)
+    assert sum(abs(e) <= 3.0 for e in errors) >= 13, _figures(campaign)
 
 
 def _figures(campaign) -> str:
@@ -69,13 +80,15 @@ def _figures(campaign) -> str:
                                  for r in campaign.records)
 
 
-def test_the_cut_walls_stand_by_the_soils_strength(campaign):
-    # A 70 deg wall of a c-phi soil stands up to Culmann's critical height
+def test_the_cut_walls_stand_by_the_soils_strength(campaign, logged):
+    # A wall of a c-phi soil inclined at i stands up to Culmann's critical height
     # H_c = 4 c sin(i) cos(phi) / (gamma (1 - cos(i - phi))); the pile's slope model keeps walls
-    # at the repose angle i, so H_c must exceed the deepest trench the run digs.
+    # at the repose angle i, so H_c must exceed the highest wall the run leaves: the largest
+    # rise of the surface after any period, from its lowest point to the highest beside it.
     from fmpy import read_model_description
 
     import fmus
+    from orchestrator.runlog import read_run
 
     defaults = {v.name: float(v.start) for v in read_model_description(
         str(fmus.build("Pile"))).modelVariables if v.causality == "parameter"}
@@ -83,8 +96,9 @@ def test_the_cut_walls_stand_by_the_soils_strength(campaign):
     gamma, i, phi = soil["density"] * soil["gravity"], soil["repose_angle"], \
         soil["friction_angle"]
     critical = 4 * soil["cohesion"] * np.sin(i) * np.cos(phi) / (gamma * (1 - np.cos(i - phi)))
-    deepest = soil["z_surface0"] - min(r["lowest_tip_m"][1] for r in campaign.records)
-    assert critical > deepest, (critical, deepest)
+    profile = read_run(logged[1], topics=("/pile/profile",)).channels["/pile/profile"]
+    highest = max(float(np.ptp(profile.of_period(r["k"])["z_m"][-1])) for r in campaign.records)
+    assert 1.0 < highest < critical, (critical, highest)
 
 
 def test_the_lowest_tip_point_is_logged_below_d(campaign):

@@ -130,7 +130,8 @@ def test_horizontal_cut_removes_depth_times_length(make_pile, y_start, length, d
     area = depth * abs(length)
     # The specification asks for 1 %; the sub-cell bookkeeping makes it exact to round-off.
     assert o["removed_volume"] == pytest.approx(pile.p["slice_width"] * area, rel=1e-9)
-    assert o["bucket_mass"] == pytest.approx(pile.p["density"] * pile.p["slice_width"] * area, rel=1e-9)
+    assert o["bucket_mass"] == pytest.approx(pile.p["density"] * pile.p["slice_width"] * area,
+                                             rel=1e-9)
     bucket = o["bucket_mass"]
     o = pile.move(*pile.tip, steps=1, dump=1.0)[-1]
     assert (o["bucket_mass"], o["dumped_mass"]) == (0.0, bucket)

@@ -217,3 +217,22 @@ int model_do_step(double *v, void *state, double t, double h, const char **error
     write_outputs(v, s, &g, y1 - y0, z1 - z0);
     return 0;
 }
+
+/* A state restored from bytes must not index outside the profile or carry a non-finite value. */
+int model_check_state(const double *v, const void *state, const char **error)
+{
+    const PileState *s = state;
+    const Profile *p = &s->profile;
+    (void)v;
+    int ok = s->held >= -1 && s->held < N_h && p->active >= -1 && p->active < N_h
+             && p->n_seg >= 0 && p->n_seg <= PROFILE_MAX_SEGMENTS;
+    for (int i = 0; ok && i < N_h; ++i) ok = isfinite(p->h[i]);
+    for (int j = 0; ok && j <= PROFILE_MAX_SEGMENTS; ++j) ok = isfinite(p->seg_y[j]);
+    for (int j = 0; ok && j < PROFILE_MAX_SEGMENTS; ++j) ok = isfinite(p->seg_h[j]);
+    ok = ok && isfinite(s->bucket_volume) && isfinite(s->dumped_volume)
+         && isfinite(s->removed_volume) && isfinite(s->tip_y) && isfinite(s->tip_z);
+    for (int i = 0; ok && i < 2; ++i) ok = fabs(s->mobilized.side[i]) <= 1.0;
+    ok = ok && fabs(s->mobilized.normal) <= 1.0;
+    if (!ok) *error = "the pile state is out of range (profile indices or non-finite values)";
+    return ok ? 0 : 1;
+}
