@@ -1,51 +1,61 @@
 /*
  * Valve-controlled asymmetric hydraulic cylinder (SI units, gauge pressures).
  *
- * States: stroke x, velocity v and the chamber states psi_A, psi_B (pressure, or cavitation void
- * when negative; see below).
- *
- * Valve: critical-centre 4/3 proportional valve, opening a = clamp(u, -1, 1), four metering edges
- *   a > 0:  Q_A =  q_rated*a*f(p_S - p_A)   (P->A)    Q_B = -q_rated*a*f(p_B - p_T)   (B->T)
- *   a < 0:  Q_A = -q_rated*|a|*f(p_A - p_T) (A->T)    Q_B =  q_rated*|a|*f(p_S - p_B) (P->B)
- *   orifice law f(dp) = sign(dp)*sqrt(|dp|/dp_rated); below |dp| = dp_laminar it is replaced by
- *   the odd cubic with the same value and slope at dp_laminar (a small "laminar" region), so the
- *   flow gain stays finite at dp = 0 and the stiff ODE stays well-behaved.
- * Relief: each chamber drains to tank through Q_relief = k_relief*max(p - p_relief, 0).
- * Chambers (stroke-dependent volumes):
- *   V_A = V_dead_A + A_A*x,  V_B = V_dead_B + A_B*(stroke - x)
- *   dp_A/dt = beta/V_A*(Q_A - Q_relief,A - A_A*v),  dp_B/dt = beta/V_B*(Q_B - Q_relief,B + A_B*v)
- * Cavitation: a chamber's pressure does not fall below 0 (gauge, about atmospheric; oil releases
- *   air and vapour there). Further expansion opens a void, and the pressure stays 0 until inflow
- *   has filled the void again, so the oil volume is conserved through cavitation. Each chamber's
- *   state psi carries both: p = max(psi, 0) and void volume V_void = max(-psi, 0)*V/beta, with
- *   dpsi/dt = beta/V*(net inflow) - [psi < 0]*psi/V*dV/dt (the second term keeps V_void exact
- *   while V changes). The right-hand side is continuous at psi = 0, so RK4 keeps its accuracy.
- * Piston: mass*dv/dt = p_A*A_A - p_B*A_B - F_ext - F_coulomb*tanh(v/v_coulomb) - b_viscous*v
- * End stops: inelastic. At x = 0 (or stroke) with the piston pushed into the stop, the stop takes
- *   the force (dx/dt = dv/dt = 0); after every substep x is clamped to [0, stroke] and a velocity
- *   into the stop is zeroed, so x never leaves [0, stroke].
- *
- * Integration: classical RK4 with n_substeps fixed substeps per communication step. RK4 is
- * explicit, so the substep must stay inside its stability region: at initialization we bound the
- * largest Jacobian eigenvalue (hydraulic spring-mass frequency at the dead volumes, friction
- * slope, orifice and relief flow gains) and, if h/n_substeps exceeds 2/lambda, take more
- * substeps. This keeps any communication step stable without an implicit solver; with the
- * defaults 2/lambda is about 0.2 ms, so 10 substeps cover a 1 ms step.
+ * States x (stroke), v, psi_A, psi_B (chamber pressure, or a cavitation void when negative).
+ * Inputs u (spool), F_ext (load, positive resists extension), mass_load (reflected load mass).
+ * Valve: critical-centre 4/3, a = clamp(u, -1, 1), q = q_rated*|a|, f(dp) = sign(dp)*sqrt(|dp|/
+ *   dp_rated) (below dp_laminar the odd cubic of equal value and slope: finite gain at dp = 0)
+ *   a > 0: Q_PA = q*f(max(p_S - p_A, 0)), Q_BT = q*f(p_B - p_T)   (P->A, B->T)
+ *   a < 0: Q_PB = q*f(max(p_S - p_B, 0)), Q_AT = q*f(p_A - p_T)   (P->B, A->T)
+ *   max(., 0): the load-holding check in the P channel passes no flow back into the supply.
+ * Per chamber: relief to tank Q_rl = k_relief*max(p - p_relief, 0); make-up (anti-cavitation)
+ *   check from tank Q_mu = k_makeup*max(p_T - dp_makeup - p, 0).
+ * Chambers: V_A = V_dead_A + A_A*x, V_B = V_dead_B + A_B*(stroke - x), net inflow
+ *   Q_A = Q_PA - Q_AT - Q_rl,A + Q_mu,A, Q_B = Q_PB - Q_BT - Q_rl,B + Q_mu,B;
+ *   p = max(psi, 0), dpsi/dt = beta/V*(Q - dV/dt) - [psi < 0]*psi/V*dV/dt: where the make-up
+ *   cannot keep up the pressure reaches 0 gauge and the oil cavitates; psi < 0 is then a void
+ *   V_void = -psi*V/beta that inflow fills before p rises (the oil volume is conserved).
+ * Piston: M*dv/dt = p_A*A_A - p_B*A_B - F_ext - F_coulomb*tanh(v/v_coulomb) - b_viscous*v,
+ *   M = mass + mass_load (held over a step; v is kept when M changes). |F_ext| is clamped at
+ *   1000*max(p_S, p_relief)*A_B, far beyond what the relief holds: the state stays finite.
+ * End stops: inelastic; at 0 or stroke, pushed into the stop, dx/dt = dv/dt = 0 (the stop takes
+ *   the force); after each substep x is clamped to [0, stroke], a velocity into the stop zeroed.
+ * Energy outputs (J since initialization; RK4 quadrature of the stage powers, see derivatives()):
+ *   E_supply + E_mass_load = E_tank + E_throttling + E_relief + E_friction + E_load
+ *                            + E_end_stop + E_stored - E_stored(0),
+ *   E_stored = M*v^2/2 + E_oil, E_oil = sum over both chambers of the integral of p*(Q - dV/dt).
+ * Integration: classical RK4 with n_substeps per step, more when h/n_substeps exceeds 2/lambda,
+ *   lambda a bound of the Jacobian's spectral radius (stiffness_terms), recomputed each step for M.
  */
+
 #include <math.h>
 
 #include "model.h"
 
 static const double PI = 3.14159265358979323846;
 
+/* |F_ext| is clamped to this many times the largest force the port pressures put on the smaller
+ * area (s->F_limit): far beyond it the piston reaches its stop within microseconds whatever the
+ * load, and the clamp keeps pressures and energies finite for any finite input. */
+static const double LOAD_LIMIT_FACTOR = 1000.0;
+static const double MASS_LOAD_MAX = 1.0e12; /* kg: keeps M*v^2 finite */
+static const double MIN_AREA = 1.0e-7;      /* m^2: a 0.36 mm bore; smaller is no cylinder */
+
 typedef struct {
     double x, v, psi_A, psi_B;
 } Y;
 
+/* Stage powers (W) and their integrals (J). */
+enum { W_SUPPLY, W_TANK, W_THROTTLING, W_RELIEF, W_FRICTION, W_LOAD, W_END_STOP, W_OIL, N_POWER };
+
 typedef struct {
     Y y;
     double A_A, A_B;
-    double h_stable; /* longest stable RK4 substep, s */
+    double spring, damping, flow; /* terms of the stiffness bound, see stiffness() */
+    double F_limit;               /* N, LOAD_LIMIT_FACTOR times the largest port force */
+    double M;                     /* mass + mass_load of the last step, kg */
+    double energy[N_POWER];       /* J since initialization (E_OIL: from the initial state) */
+    double E_mass_load;           /* J: M v^2/2 gained when mass_load changed */
 } State;
 
 const size_t model_state_size = sizeof(State);
@@ -53,7 +63,8 @@ const size_t model_state_size = sizeof(State);
 /* Parameters and inputs gathered once per communication step. */
 typedef struct {
     double A_A, A_B, stroke, V_dead_A, V_dead_B, beta, p_S, p_T, p_relief, k_relief;
-    double dp_laminar, inv_dp_rated, inv_sqrt_rated_laminar, inv_mass, F_c, inv_v_c, b;
+    double k_makeup, p_makeup; /* make-up opens below p_makeup = p_T - dp_makeup */
+    double dp_laminar, inv_dp_rated, inv_sqrt_rated_laminar, M, inv_mass, F_c, inv_v_c, b;
     double q_open; /* q_rated*a: flow of one edge at dp_rated at the current opening, m^3/s */
     double a, F_ext;
 } P;
@@ -78,36 +89,78 @@ static double chamber_rate(double beta, double V, double dV_dt, double Q, double
     return psi < 0.0 ? rate - psi / V * dV_dt : rate;
 }
 
-static void derivatives(const P *p, const Y *y, Y *dy) {
+/* State derivatives dy and stage powers w (W) at y.
+ *
+ * Load-holding check: the P edges pass max(p_S - p, 0). It has no cracking pressure, so flow
+ * from the supply is exactly the edge's (a real check cracks at a few tenths of a bar, which
+ * would only shift the metering); the flow stays continuous and only its slope jumps at
+ * dp = 0, from the laminar gain to 0, so RK4 loses accuracy at most in the substep crossing it.
+ * Make-up: linear in the pressure below p_T - dp_makeup, like the relief: a port relief
+ * cartridge carries the anti-cavitation check, and its poppet opens either way.
+ *
+ * Powers, from the flows above (Q_PA... all >= 0 in their arrow's direction but Q_AT, Q_BT,
+ * which reverse when p < p_T): supply p_S*(Q_PA + Q_PB); tank p_T*(Q_AT + Q_BT + Q_rl - Q_mu);
+ * throttling the sum of dp*Q over the four edges and both make-up checks; relief
+ * (p - p_T)*Q_rl; oil p*(Q - dV/dt). Their balance is p_A*A_A*dx - p_B*A_B*dx = F*dx exactly
+ * (p*Q telescopes edge by edge). The piston turns F*dx into load F_ext*dx, friction F_f*dx and
+ * kinetic M*v*dv (dx = v off the stops); on a stop (dx = 0) the stage's kinetic power M*v*dv
+ * goes to the stop. So the powers balance at every stage, their RK4 quadrature balances too,
+ * and E_oil is the compression work p dV_oil with dV_oil = (Q - dV/dt) dt = V/beta dp: the
+ * energy stored in the oil as the model's chamber law has it (V*p^2/(2 beta) for a chamber of
+ * fixed volume). In a void p = 0: no power. What does not close is the kinetic energy, kept as
+ * M v^2/2 of the state rather than integrated: the difference is the RK4 error of v. */
+static void derivatives(const P *p, const Y *y, Y *dy, double *w) {
     double p_A = fmax(y->psi_A, 0.0), p_B = fmax(y->psi_B, 0.0);
     double x = clamp(y->x, 0.0, p->stroke);
-    double Q_A = 0.0, Q_B = 0.0, force, dx, dv;
+    double Q_PA = 0.0, Q_AT = 0.0, Q_PB = 0.0, Q_BT = 0.0, Q_A, Q_B, force, dx, dv, tanh_v;
+    double relief_A = p->k_relief * fmax(p_A - p->p_relief, 0.0);
+    double relief_B = p->k_relief * fmax(p_B - p->p_relief, 0.0);
+    double makeup_A = p->k_makeup * fmax(p->p_makeup - p_A, 0.0);
+    double makeup_B = p->k_makeup * fmax(p->p_makeup - p_B, 0.0);
+    int on_stop = 0;
     if (p->a > 0.0) {
-        Q_A = p->q_open * orifice(p, p->p_S - p_A);
-        Q_B = -p->q_open * orifice(p, p_B - p->p_T);
-    } else if (p->a < 0.0) {
-        Q_A = p->q_open * orifice(p, p_A - p->p_T);
-        Q_B = -p->q_open * orifice(p, p->p_S - p_B);
+        Q_PA = p->q_open * orifice(p, fmax(p->p_S - p_A, 0.0));
+        Q_BT = p->q_open * orifice(p, p_B - p->p_T);
+    } else if (p->a < 0.0) { /* q_open < 0 */
+        Q_AT = -(p->q_open * orifice(p, p_A - p->p_T));
+        Q_PB = -(p->q_open * orifice(p, fmax(p->p_S - p_B, 0.0)));
     }
-    Q_A -= p->k_relief * fmax(p_A - p->p_relief, 0.0);
-    Q_B -= p->k_relief * fmax(p_B - p->p_relief, 0.0);
+    Q_A = Q_PA - Q_AT;
+    Q_B = Q_PB - Q_BT;
+    Q_A -= relief_A;
+    Q_B -= relief_B;
+    Q_A += makeup_A;
+    Q_B += makeup_B;
 
-    force = p_A * p->A_A - p_B * p->A_B - p->F_ext - p->F_c * tanh(y->v * p->inv_v_c)
-            - p->b * y->v;
+    tanh_v = tanh(y->v * p->inv_v_c);
+    force = p_A * p->A_A - p_B * p->A_B - p->F_ext - p->F_c * tanh_v - p->b * y->v;
     dx = y->v;
     dv = force * p->inv_mass;
     if (y->x <= 0.0 && y->v <= 0.0) { /* resting on (or pushed into) the bottom stop */
         dx = 0.0;
         dv = fmax(dv, 0.0);
+        on_stop = 1;
     } else if (y->x >= p->stroke && y->v >= 0.0) {
         dx = 0.0;
         dv = fmin(dv, 0.0);
+        on_stop = 1;
     }
     dy->x = dx;
     dy->v = dv;
     dy->psi_A = chamber_rate(p->beta, p->V_dead_A + p->A_A * x, p->A_A * dx, Q_A, y->psi_A);
     dy->psi_B = chamber_rate(p->beta, p->V_dead_B + p->A_B * (p->stroke - x), -p->A_B * dx, Q_B,
                              y->psi_B);
+
+    w[W_SUPPLY] = p->p_S * (Q_PA + Q_PB);
+    w[W_TANK] = p->p_T * (Q_AT + Q_BT + relief_A + relief_B - makeup_A - makeup_B);
+    w[W_THROTTLING] = (p->p_S - p_A) * Q_PA + (p_A - p->p_T) * Q_AT + (p->p_S - p_B) * Q_PB
+                      + (p_B - p->p_T) * Q_BT + (p->p_T - p_A) * makeup_A
+                      + (p->p_T - p_B) * makeup_B;
+    w[W_RELIEF] = (p_A - p->p_T) * relief_A + (p_B - p->p_T) * relief_B;
+    w[W_FRICTION] = (p->F_c * tanh_v + p->b * y->v) * dx;
+    w[W_LOAD] = p->F_ext * dx;
+    w[W_END_STOP] = on_stop ? -p->M * y->v * dv : 0.0;
+    w[W_OIL] = p_A * (Q_A - p->A_A * dx) + p_B * (Q_B + p->A_B * dx);
 }
 
 static void axpy(Y *out, const Y *y, double h, const Y *k) {
@@ -117,19 +170,25 @@ static void axpy(Y *out, const Y *y, double h, const Y *k) {
     out->psi_B = y->psi_B + h * k->psi_B;
 }
 
-static void rk4_substep(const P *p, Y *y, double h) {
+static void rk4_substep(const P *p, Y *y, double *energy, double h) {
     Y k1, k2, k3, k4, t;
-    derivatives(p, y, &k1);
+    double w1[N_POWER], w2[N_POWER], w3[N_POWER], w4[N_POWER], v_before;
+    int i;
+    derivatives(p, y, &k1, w1);
     axpy(&t, y, 0.5 * h, &k1);
-    derivatives(p, &t, &k2);
+    derivatives(p, &t, &k2, w2);
     axpy(&t, y, 0.5 * h, &k2);
-    derivatives(p, &t, &k3);
+    derivatives(p, &t, &k3, w3);
     axpy(&t, y, h, &k3);
-    derivatives(p, &t, &k4);
+    derivatives(p, &t, &k4, w4);
     y->x += h / 6.0 * (k1.x + 2.0 * k2.x + 2.0 * k3.x + k4.x);
     y->v += h / 6.0 * (k1.v + 2.0 * k2.v + 2.0 * k3.v + k4.v);
     y->psi_A += h / 6.0 * (k1.psi_A + 2.0 * k2.psi_A + 2.0 * k3.psi_A + k4.psi_A);
     y->psi_B += h / 6.0 * (k1.psi_B + 2.0 * k2.psi_B + 2.0 * k3.psi_B + k4.psi_B);
+    for (i = 0; i < N_POWER; i++) {
+        energy[i] += h / 6.0 * (w1[i] + 2.0 * w2[i] + 2.0 * w3[i] + w4[i]);
+    }
+    v_before = y->v;
     if (y->x <= 0.0) {
         y->x = 0.0;
         y->v = fmax(y->v, 0.0);
@@ -137,6 +196,8 @@ static void rk4_substep(const P *p, Y *y, double h) {
         y->x = p->stroke;
         y->v = fmin(y->v, 0.0);
     }
+    /* The inelastic stop takes the kinetic energy of the velocity it zeroes. */
+    energy[W_END_STOP] += 0.5 * p->M * (v_before * v_before - y->v * y->v);
 }
 
 static void gather(const double *v, const State *s, P *p) {
@@ -150,16 +211,19 @@ static void gather(const double *v, const State *s, P *p) {
     p->p_T = v[VR_p_tank];
     p->p_relief = v[VR_p_relief];
     p->k_relief = v[VR_k_relief];
+    p->k_makeup = v[VR_k_makeup];
+    p->p_makeup = v[VR_p_tank] - v[VR_dp_makeup];
     p->dp_laminar = v[VR_dp_laminar];
     p->inv_dp_rated = 1.0 / v[VR_dp_rated];
     p->inv_sqrt_rated_laminar = 1.0 / sqrt(v[VR_dp_rated] * v[VR_dp_laminar]);
-    p->inv_mass = 1.0 / v[VR_mass];
+    p->M = s->M;
+    p->inv_mass = 1.0 / s->M;
     p->F_c = v[VR_F_coulomb];
     p->inv_v_c = 1.0 / v[VR_v_coulomb];
     p->b = v[VR_b_viscous];
     p->a = clamp(v[VR_u], -1.0, 1.0);
     p->q_open = v[VR_q_rated] * p->a;
-    p->F_ext = v[VR_F_ext];
+    p->F_ext = clamp(v[VR_F_ext], -s->F_limit, s->F_limit);
 }
 
 static void write_outputs(double *v, const State *s) {
@@ -169,50 +233,99 @@ static void write_outputs(double *v, const State *s) {
     v[VR_p_A] = p_A;
     v[VR_p_B] = p_B;
     v[VR_F] = p_A * s->A_A - p_B * s->A_B;
+    v[VR_E_supply] = s->energy[W_SUPPLY];
+    v[VR_E_tank] = s->energy[W_TANK];
+    v[VR_E_throttling] = s->energy[W_THROTTLING];
+    v[VR_E_relief] = s->energy[W_RELIEF];
+    v[VR_E_friction] = s->energy[W_FRICTION];
+    v[VR_E_load] = s->energy[W_LOAD];
+    v[VR_E_end_stop] = s->energy[W_END_STOP];
+    v[VR_E_mass_load] = s->E_mass_load;
+    v[VR_E_stored] = 0.5 * s->M * s->y.v * s->y.v + s->energy[W_OIL];
 }
 
+static int finite_positive(double value) { return isfinite(value) && value > 0.0; }
+
+/* The parameters one by one (what variables.toml's min/max cannot say: strict bounds), across
+ * variables, and every derived quantity the integration divides by or multiplies with. */
 static const char *check_parameters(const double *v) {
+    double A_A = PI / 4.0 * v[VR_bore] * v[VR_bore];
+    double A_B = PI / 4.0 * (v[VR_bore] * v[VR_bore] - v[VR_rod] * v[VR_rod]);
     if (!(v[VR_bore] > 0.0)) return "bore must be > 0";
     if (!(v[VR_rod] > 0.0 && v[VR_rod] < v[VR_bore])) return "rod must be > 0 and < bore";
+    if (!(isfinite(A_A) && A_A >= MIN_AREA && isfinite(A_B) && A_B >= MIN_AREA)) {
+        return "piston area pi/4*bore^2 and annulus pi/4*(bore^2 - rod^2) must be finite and "
+               ">= 1e-7 m^2";
+    }
     if (!(v[VR_stroke] > 0.0)) return "stroke must be > 0";
     if (!(v[VR_V_dead_A] > 0.0 && v[VR_V_dead_B] > 0.0)) return "V_dead_A and V_dead_B must be > 0";
+    if (!(isfinite(v[VR_V_dead_A] + A_A * v[VR_stroke])
+          && isfinite(v[VR_V_dead_B] + A_B * v[VR_stroke]))) {
+        return "chamber volumes V_dead + area*stroke must be finite";
+    }
     if (!(v[VR_beta] > 0.0)) return "beta must be > 0";
     if (!(v[VR_p_tank] >= 0.0)) return "p_tank must be >= 0";
     if (!(v[VR_p_supply] > v[VR_p_tank])) return "p_supply must be > p_tank";
     if (!(v[VR_p_relief] > v[VR_p_tank])) return "p_relief must be > p_tank";
     if (!(v[VR_k_relief] > 0.0)) return "k_relief must be > 0";
+    if (!(v[VR_k_makeup] >= 0.0 && v[VR_dp_makeup] >= 0.0)) {
+        return "k_makeup and dp_makeup must be >= 0";
+    }
     if (!(v[VR_q_rated] > 0.0 && v[VR_dp_rated] > 0.0)) return "q_rated and dp_rated must be > 0";
     if (!(v[VR_dp_laminar] > 0.0 && v[VR_dp_laminar] < v[VR_dp_rated])) {
         return "dp_laminar must be > 0 and < dp_rated";
     }
-    if (!(v[VR_mass] > 0.0)) return "mass must be > 0";
+    if (!(finite_positive(1.0 / v[VR_dp_rated])
+          && finite_positive(1.0 / sqrt(v[VR_dp_rated] * v[VR_dp_laminar])))) {
+        return "dp_rated and dp_laminar must keep 1/dp_rated and 1/sqrt(dp_rated*dp_laminar) "
+               "finite";
+    }
+    if (!(v[VR_mass] > 0.0 && finite_positive(1.0 / v[VR_mass]))) return "mass must be > 0";
     if (!(v[VR_F_coulomb] >= 0.0 && v[VR_b_viscous] >= 0.0)) {
         return "F_coulomb and b_viscous must be >= 0";
     }
-    if (!(v[VR_v_coulomb] > 0.0)) return "v_coulomb must be > 0";
+    if (!(v[VR_v_coulomb] > 0.0 && finite_positive(1.0 / v[VR_v_coulomb]))) {
+        return "v_coulomb must be > 0";
+    }
     if (!(v[VR_x0] >= 0.0 && v[VR_x0] <= v[VR_stroke])) return "x0 must lie in [0, stroke]";
     if (!(v[VR_n_substeps] >= 1.0)) return "n_substeps must be >= 1";
     return NULL;
 }
 
-/* Upper bound of the Jacobian's spectral radius, 1/s: hydraulic spring-mass frequency with both
- * chambers at their dead volumes, plus the friction slope, plus the largest flow gain
- * (orifice slope at dp = 0 is 1.25*q_rated/sqrt(dp_rated*dp_laminar); relief k_relief)
- * over the smallest chamber's capacitance V/beta. */
-static double stiffness_bound(const P *p, double q_rated) {
-    double V_min = fmin(p->V_dead_A, p->V_dead_B);
-    double spring = p->beta * (p->A_A * p->A_A / p->V_dead_A + p->A_B * p->A_B / p->V_dead_B);
-    double hydraulic = sqrt(spring * p->inv_mass);
-    double friction = (p->b + p->F_c * p->inv_v_c) * p->inv_mass;
-    double flow = p->beta / V_min * (1.25 * q_rated * p->inv_sqrt_rated_laminar + p->k_relief);
-    return hydraulic + friction + flow;
+static const char *check_mass_load(double mass_load) {
+    return mass_load >= 0.0 && mass_load <= MASS_LOAD_MAX ? NULL
+                                                         : "mass_load must lie in [0, 1e12] kg";
+}
+
+/* Upper bound of the Jacobian's spectral radius, 1/s: the hydraulic spring-mass frequency with
+ * both chambers at their dead volumes (sqrt(spring/M)), plus the friction slope (damping/M),
+ * plus the largest flow gain over the smallest chamber's capacitance V/beta (flow). Per chamber
+ * one metering edge is open (slope at most 1.25*q_rated/sqrt(dp_rated*dp_laminar), at dp = 0),
+ * and relief and make-up never open together (p_relief > p_T), so the larger of k_relief and
+ * k_makeup counts; k_makeup only if the make-up can open at all (p_T > dp_makeup, as p >= 0).
+ * All three terms fall as M grows, so they are kept and combined for each step's M. */
+static void stiffness_terms(const double *v, State *s) {
+    double V_min = fmin(v[VR_V_dead_A], v[VR_V_dead_B]);
+    /* The same operations as the per-stage constants in gather() use. */
+    double valve = 1.25 * v[VR_q_rated] * (1.0 / sqrt(v[VR_dp_rated] * v[VR_dp_laminar]));
+    double k_port = v[VR_p_tank] > v[VR_dp_makeup] ? fmax(v[VR_k_relief], v[VR_k_makeup])
+                                                   : v[VR_k_relief];
+    s->spring = v[VR_beta] * (s->A_A * s->A_A / v[VR_V_dead_A] + s->A_B * s->A_B / v[VR_V_dead_B]);
+    s->damping = v[VR_b_viscous] + v[VR_F_coulomb] * (1.0 / v[VR_v_coulomb]);
+    s->flow = v[VR_beta] / V_min * (valve + k_port);
+}
+
+static double stable_substep(const State *s) {
+    double inv_mass = 1.0 / s->M;
+    return 2.0 / (sqrt(s->spring * inv_mass) + s->damping * inv_mass + s->flow);
 }
 
 int model_initialize(double *v, void *state, const char **error) {
     State *s = state;
-    P p;
-    double F0, p_T;
+    double F0, p_T, V_A, V_B, p_max;
+    int i;
     const char *problem = check_parameters(v);
+    if (problem == NULL) problem = check_mass_load(v[VR_mass_load]);
     if (problem != NULL) {
         *error = problem;
         return 1;
@@ -221,12 +334,21 @@ int model_initialize(double *v, void *state, const char **error) {
     s->A_B = PI / 4.0 * (v[VR_bore] * v[VR_bore] - v[VR_rod] * v[VR_rod]);
     v[VR_A_A] = s->A_A;
     v[VR_A_B] = s->A_B;
-    gather(v, s, &p);
-    s->h_stable = 2.0 / stiffness_bound(&p, v[VR_q_rated]);
+    s->M = v[VR_mass] + v[VR_mass_load];
+    for (i = 0; i < N_POWER; i++) s->energy[i] = 0.0;
+    s->E_mass_load = 0.0;
+    stiffness_terms(v, s);
+    p_max = fmax(v[VR_p_supply], v[VR_p_relief]);
+    s->F_limit = LOAD_LIMIT_FACTOR * p_max * fmin(s->A_A, s->A_B);
+    if (!(finite_positive(s->spring + s->damping + s->flow) && finite_positive(stable_substep(s))
+          && finite_positive(s->F_limit))) {
+        *error = "parameters give a non-finite stiffness bound or load limit";
+        return 1;
+    }
 
     /* Start at rest in static equilibrium with the start load: the lower-pressure chamber at
      * tank pressure, the other one carrying F0 (p_A*A_A - p_B*A_B = F0). */
-    F0 = v[VR_F_ext];
+    F0 = clamp(v[VR_F_ext], -s->F_limit, s->F_limit);
     p_T = v[VR_p_tank];
     s->y.x = v[VR_x0];
     s->y.v = 0.0;
@@ -237,6 +359,12 @@ int model_initialize(double *v, void *state, const char **error) {
         s->y.psi_A = p_T;
         s->y.psi_B = (p_T * s->A_A - F0) / s->A_B;
     }
+    /* The compression energy of the start pressures, V*p^2/(2 beta) per chamber (the chamber
+     * law dp = beta/V dV_oil at fixed V). */
+    V_A = v[VR_V_dead_A] + s->A_A * s->y.x;
+    V_B = v[VR_V_dead_B] + s->A_B * (v[VR_stroke] - s->y.x);
+    s->energy[W_OIL] = (V_A * s->y.psi_A * s->y.psi_A + V_B * s->y.psi_B * s->y.psi_B)
+                       / (2.0 * v[VR_beta]);
     write_outputs(v, s);
     return 0;
 }
@@ -244,10 +372,22 @@ int model_initialize(double *v, void *state, const char **error) {
 int model_do_step(double *v, void *state, double t, double h, const char **error) {
     State *s = state;
     P p;
-    double n = v[VR_n_substeps], needed, h_sub;
+    double n = v[VR_n_substeps], needed, h_sub, M;
     long i, count;
+    const char *problem = check_mass_load(v[VR_mass_load]);
     (void)t;
-    needed = ceil(h / s->h_stable);
+    if (problem != NULL) {
+        *error = problem;
+        return 1;
+    }
+    /* A new reflected mass keeps the velocity (the coupling's pose moved): the kinetic energy
+     * it adds or takes is booked as E_mass_load. */
+    M = v[VR_mass] + v[VR_mass_load];
+    if (M != s->M) {
+        s->E_mass_load += 0.5 * (M - s->M) * s->y.v * s->y.v;
+        s->M = M;
+    }
+    needed = ceil(h / stable_substep(s));
     if (needed > n) n = needed;
     if (n > 1e8) {
         *error = "communication step too long: more than 1e8 stable RK4 substeps needed";
@@ -256,7 +396,7 @@ int model_do_step(double *v, void *state, double t, double h, const char **error
     count = (long)n;
     h_sub = h / (double)count;
     gather(v, s, &p);
-    for (i = 0; i < count; i++) rk4_substep(&p, &s->y, h_sub);
+    for (i = 0; i < count; i++) rk4_substep(&p, &s->y, s->energy, h_sub);
     write_outputs(v, s);
     return 0;
 }
