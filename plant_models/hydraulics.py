@@ -5,14 +5,12 @@ HydraulicCylinder FmuSpecs (boom, stick, bucket) with the cylinder data below, a
 FmuSpec. Each cylinder's `stroke` is its linkage's stroke (plant_models.presets); its initial
 stroke `x0` is set by the plant from the start pose.
 
-Link inertia: the cylinder FMU has one moving mass. It is set to the rod's own mass plus the
-inertia the joint sees with the other joints locked (the diagonal term M_ii of the arm's mass
-matrix, links as point masses at their centres of mass plus a uniform rod's m L^2 / 12 about
-it) reflected onto the rod, M_ii / r_i^2 with r_i = d(stroke)/d(angle), at DESIGN_POSE_RAD
-(lab: LAB_DESIGN_POSE_RAD). This is stable (the inertia stays inside the FMU's integrator) and
-exact at that pose; the pose dependence (a factor 1.1 on the boom, up to 3 on the stick and 5
-on the bucket over the paper path) and the off-diagonal coupling are left out: the paper's
-trajectories are slow (< 33 deg/s), so inertial forces stay small next to gravity.
+Link inertia: the cylinder FMU's `mass` is the piston and rod's own. The arm's inertia is the
+coupling's (orchestrator.plants.arm_dynamics): each step it feeds the pose's diagonal term of
+the arm's mass matrix (plant_models.arm_inertia) reflected onto the rod, M_ii / r_i^2 with
+r_i = d(stroke)/d(angle), to the FMU's `mass_load` input, and the off-diagonal and
+velocity-product terms into F_ext. The servo is designed on the reflected inertia at
+DESIGN_POSE_RAD (lab: LAB_DESIGN_POSE_RAD) plus the piston's (`cylinder_model`).
 
 paper (a 20 t class machine; round figures of the class's specification sheets)
     boom     two 120/85 mm cylinders, modelled as one of the same total areas (bore 169.7 mm,
@@ -55,6 +53,7 @@ lab (the paper's lab excavator, section 3.3: 20 bar maximum oil pressure, 100 ml
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -168,13 +167,16 @@ def cylinder_parameters(preset: str) -> dict[str, dict[str, float]]:
     parameters = tables[preset]()
     for joint, stroke in zip(JOINT_NAMES, strokes, strict=True):
         parameters[joint]["stroke"] = stroke
-        parameters[joint]["mass"] += reflected_mass_kg(geometry, joint, _DESIGN_POSES[preset])
     return parameters
 
 
 def cylinder_model(preset: str, joint: str) -> CylinderModel:
-    """The servo's model of `joint`'s cylinder in `preset` (our FMU's parameters)."""
-    return CylinderModel.from_fmu_parameters(cylinder_parameters(preset)[joint])
+    """The servo's model of `joint`'s cylinder in `preset`: our FMU's parameters, with the link
+    inertia reflected onto the rod at the design pose added to the piston's mass (the FMU gets
+    the pose's reflected inertia each step through its `mass_load` input)."""
+    model = CylinderModel.from_fmu_parameters(cylinder_parameters(preset)[joint])
+    reflected = reflected_mass_kg(presets.get(preset), joint, _DESIGN_POSES[preset])
+    return replace(model, mass_kg=model.mass_kg + reflected)
 
 
 def design_strokes_m(preset: str) -> tuple[float, float, float]:

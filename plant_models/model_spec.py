@@ -4,8 +4,9 @@ A port map says which FMU variable plays each role the excavator needs, so any F
 co-simulation FMU with equivalent ports can replace one of ours. Roles:
 
 - cylinder (boom, stick, bucket): inputs `u` (spool command, -1..1, +1 extends), `F_ext` (N,
-  load along the rod, positive resists extension); outputs `x` (stroke, m), `v` (m/s), `p_A`,
-  `p_B` (Pa; optional: an FMU without chambers has none), `F` (N).
+  load along the rod, positive resists extension), `mass_load` (kg, optional: the arm's inertia
+  reflected onto the rod, which the FMU integrates with its piston); outputs `x` (stroke, m),
+  `v` (m/s), `p_A`, `p_B` (Pa; optional: an FMU without chambers has none), `F` (N).
 - pile: inputs `tip_y`, `tip_z` (m), `bucket_angle` (rad, plant_models.geometry.pile_bucket_angle),
   `dump` (>0.5 empties the bucket); outputs `bucket_mass` (kg), `F_y`, `F_z` (N),
   `removed_volume` (m^3), `dumped_mass`, `pile_mass` (kg), `surface_z_at_tip` (m).
@@ -20,16 +21,17 @@ from types import MappingProxyType
 from plant_models.linear_cylinder import LinearCylinderModel
 from plant_models.port_units import PortMap
 
-CYLINDER_INPUTS: tuple[str, ...] = ("u", "F_ext")
+CYLINDER_INPUTS: tuple[str, ...] = ("u", "F_ext", "mass_load")
 CYLINDER_OUTPUTS: tuple[str, ...] = ("x", "v", "p_A", "p_B", "F")
 PILE_INPUTS: tuple[str, ...] = ("tip_y", "tip_z", "bucket_angle", "dump")
 PILE_OUTPUTS: tuple[str, ...] = (
     "bucket_mass", "F_y", "F_z", "removed_volume", "dumped_mass", "pile_mass", "surface_z_at_tip",
 )
-# Outputs a role's FMU may lack: an actuator without oil chambers (IdealActuator) has no
-# chamber pressures; the excavator then logs none (absent, not a made-up 0).
-OPTIONAL_OUTPUTS: Mapping[str, tuple[str, ...]] = MappingProxyType({
-    "cylinder": ("p_A", "p_B"), "pile": (),
+# Ports a role's FMU may lack: an actuator without oil chambers (IdealActuator) has no chamber
+# pressures (the excavator then logs none: absent, not a made-up 0), and one that takes no load
+# mass has no `mass_load` (the arm's reflected inertia is then not fed to it).
+OPTIONAL_PORTS: Mapping[str, tuple[str, ...]] = MappingProxyType({
+    "cylinder": ("p_A", "p_B", "mass_load"), "pile": (),
 })
 ROLES: Mapping[str, tuple[str, ...]] = MappingProxyType({
     "cylinder": CYLINDER_INPUTS + CYLINDER_OUTPUTS,

@@ -35,7 +35,8 @@ KNOWN_UNITS: Mapping[str, tuple[tuple[int, int, int, int], float, float]] = {
 # The unit of every role (plant_models.model_spec roles and parameter roles).
 ROLE_UNITS: Mapping[str, str] = {
     "u": "1", "F_ext": "N", "x": "m", "v": "m/s", "p_A": "Pa", "p_B": "Pa", "F": "N", "x0": "m",
-    "tip_y": "m", "tip_z": "m", "bucket_angle": "rad", "dump": "1", "bucket_mass": "kg",
+    "mass_load": "kg", "tip_y": "m", "tip_z": "m", "bucket_angle": "rad", "dump": "1",
+    "bucket_mass": "kg",
     "F_y": "N", "F_z": "N", "removed_volume": "m3", "dumped_mass": "kg", "pile_mass": "kg",
     "surface_z_at_tip": "m",
 }

@@ -429,3 +429,33 @@ def test_bad_parameters_fail_initialization_naming_the_parameter(built, capsys, 
         assert name in capsys.readouterr().out
     finally:
         fmu.freeInstance()
+
+
+@pytest.mark.parametrize(("angle_deg", "share"), [
+    (135.0, 1.0),  # rake 45 deg: the edge leads, everything enters
+    (90.0, 1.0),  # rake 90 deg: a face normal to the drag still fills
+    (45.0, math.sin(135 * DEG)),  # rake 135 deg: the face leans forward and pushes part aside
+    (0.0, 0.0),  # rake 180 deg: dragged back-first, the bucket collects nothing
+])
+def test_filling_depends_on_the_buckets_orientation(make_pile, angle_deg, share):
+    pile = make_pile(tip=(-10.0, 0.5), capacity=1.0)
+    m0 = pile.outputs()["pile_mass"]
+    pile.move(-10.0, -0.2, steps=10, angle=angle_deg * DEG)
+    o = pile.move(-9.0, -0.2, steps=100, angle=angle_deg * DEG)[-1]
+    assert o["pile_mass"] + o["bucket_mass"] == pytest.approx(m0, rel=1e-12)
+    full_cut = pile.p["density"] * pile.p["slice_width"] * 0.2 * 1.0
+    assert o["bucket_mass"] == pytest.approx(share * full_cut, rel=1e-6, abs=1e-9)
+
+
+def test_a_full_bucket_pushes_a_surcharge_of_its_spoil(make_pile):
+    soil = {"cohesion": 3000.0, "adhesion": 1500.0, "surcharge": 800.0,
+            "friction_angle": 32 * DEG, "tool_friction_angle": 15 * DEG}
+    depth = 0.3
+    pile = make_pile(tip=(-10.0, 0.5), capacity=0.002, **soil)  # full after 0.42 m
+    pile.move(-10.0, -depth, steps=10)
+    o = drag(pile, -9.0, -depth, 100, 90 * DEG)
+    assert o["bucket_mass"] == pytest.approx(pile.p["density"] * 0.002, rel=1e-9)
+    gamma = pile.p["density"] * pile.p["gravity"]
+    draft, _ = mckyes_force(90 * DEG, depth, gamma, 3000.0, 1500.0, 800.0 + gamma * depth,
+                            32 * DEG, 15 * DEG)
+    assert -o["F_y"] == pytest.approx(pile.p["bucket_width"] * draft, rel=1e-7)

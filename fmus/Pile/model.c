@@ -13,6 +13,8 @@
  *     N_gamma = 2 (N_q + 1) tan phi;
  *   R = q_ult B w min(1, d/B): the bearing builds up over the first edge thickness of contact,
  *   so the force is continuous as the edge touches the soil.
+ * Full bucket: what the edge cuts heaps up in front of it (a surcharge mound), taken as the
+ *   weight of a layer as thick as the cut on the wedge: q + gamma d.
  * Lift-out: the bucket's outer face slides up along the soil it leaves, held by the soil's
  *   lateral pressure at rest (Jaky: K0 = 1 - sin phi) through the soil-tool friction and the
  *   adhesion: R = w (c_a d + (K0 gamma d^2 / 2 + K0 q d) tan delta). The material inside the
@@ -50,10 +52,11 @@ const char *pile_check_resistance(const double *v)
     return NULL;
 }
 
-void pile_cutting_force(const double *v, double rake, double depth, double *draft,
+void pile_cutting_force(const double *v, double rake, double depth, int full, double *draft,
                         double *normal)
 {
-    const SoilStrength soil = soil_of(v);
+    SoilStrength soil = soil_of(v);
+    if (full) soil.surcharge += soil.unit_weight * depth;
     const SoilBladeForce f = soil_blade_force(&soil, rake, depth);
     *draft = v[VR_bucket_width] * f.draft;
     *normal = v[VR_bucket_width] * f.normal;

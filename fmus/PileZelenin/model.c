@@ -57,9 +57,10 @@ const char *pile_check_resistance(const double *v)
     return NULL;
 }
 
-void pile_cutting_force(const double *v, double rake, double depth, double *draft,
+void pile_cutting_force(const double *v, double rake, double depth, int full, double *draft,
                         double *normal)
 {
+    (void)full; /* blocked cutting (z = 1) already describes a blade pushing its own spoil */
     const double blade = v[VR_bucket_width];
     const double alpha = fmin(ALPHA_MAX_DEG, fmax(ALPHA_MIN_DEG, rake * 180.0 / PI));
     *draft = KGF * v[VR_blows] * pow(100.0 * depth, DEPTH_EXPONENT)

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from plant_models.model_spec import CYLINDER_INPUTS, PILE_INPUTS, ROLES
+from plant_models.model_spec import CYLINDER_INPUTS, OPTIONAL_PORTS, PILE_INPUTS, ROLES
 
 __all__ = ["NotAnFmu", "RoleCheck", "FmuInfo", "resolve", "inspect_fmu", "validate",
            "info_command", "validate_command"]
@@ -39,6 +39,7 @@ class RoleCheck:
     role: str
     parts: tuple[str, ...]
     missing: list[str] = field(default_factory=list)  # role variables the FMU lacks
+    absent: list[str] = field(default_factory=list)  # optional role variables it lacks
     problems: list[str] = field(default_factory=list)  # every reason it cannot fill the role
 
     @property
@@ -62,7 +63,8 @@ class FmuInfo:
                 "fmi_version": self.fmi_version, "kinds": self.kinds,
                 "variables": self.variables,
                 "roles": {r.role: {"parts": list(r.parts), "fills": r.fills,
-                                   "missing": r.missing, "problems": r.problems}
+                                   "missing": r.missing, "absent": r.absent,
+                                   "problems": r.problems}
                           for r in self.roles}}
 
 
@@ -115,7 +117,9 @@ def _role_check(role: str, description, parameter_roles: tuple[str, ...]) -> Rol
     for port in ROLES[role]:
         wanted = "input" if port in _ROLE_INPUTS[role] else "output"
         variable = variables.get(port)
-        if variable is None:
+        if variable is None and port in OPTIONAL_PORTS[role]:
+            check.absent.append(port)
+        elif variable is None:
             check.missing.append(port)
             check.problems.append(f"{role}: no variable {port!r} (needs a Real {wanted})")
         elif variable.causality != wanted or variable.type not in _REAL:
@@ -182,6 +186,8 @@ def _text(info: FmuInfo) -> str:
         parts = f" ({'/'.join(check.parts)})" if check.parts != (check.role,) else ""
         state = "fills" if check.fills else "cannot fill"
         detail = f"; missing: {', '.join(check.missing)}" if check.missing else ""
+        if check.absent:
+            detail += f"; without the optional {', '.join(check.absent)}"
         lines.append(f"    {check.role}{parts}: {state}{detail}")
         if not check.fills and not check.missing:
             lines += [f"      {p}" for p in check.problems]

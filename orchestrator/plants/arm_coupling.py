@@ -85,6 +85,17 @@ class ArmCoupling:
         return (table.angle[i] + t * (table.c1[i] + t * (table.c2[i] + t * table.c3[i])),
                 table.arm[i] + table.arm_slope[i] * t)
 
+    def arm_slopes(self, x0: float, x1: float, x2: float) -> tuple[float, float, float]:
+        """d(moment arm)/d(angle) (m/rad) of each joint at strokes x0, x1, x2 (m): the slope
+        of the table's linear arm per stroke times the arm (d/dq = r d/dx)."""
+        out = []
+        for table, stroke in zip(self.tables, (x0, x1, x2), strict=True):
+            i = min(max(int(stroke * table.inv_dx), 0), TABLE_INTERVALS - 1)
+            fraction = min(max(stroke * table.inv_dx - i, 0.0), 1.0)
+            arm = table.arm[i] + table.arm_slope[i] * fraction
+            out.append(table.arm_slope[i] * table.inv_dx * arm)
+        return out[0], out[1], out[2]
+
     def pose(self, q0: float, q1: float, q2: float) -> tuple[float, float, float]:
         """Bucket tip y, z (m) and absolute bucket angle (rad) at joint angles (rad)."""
         (l1, l2, l3), (y, z) = self._lengths, self._foot

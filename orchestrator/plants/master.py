@@ -28,7 +28,7 @@ import numpy as np
 from fmus.runs import FastSlave
 from plant_models.model_spec import (
     CYLINDER_INPUTS,
-    OPTIONAL_OUTPUTS,
+    OPTIONAL_PORTS,
     PILE_INPUTS,
     ROLES,
     FmuSpec,
@@ -61,7 +61,7 @@ def check_component(component: str, role: str, spec: FmuSpec, description) -> di
     """Check `spec`'s port map and parameters against an FMU's model description.
 
     Returns {port role: FMU variable name} for the role's ports and parameter roles; an
-    optional output (OPTIONAL_OUTPUTS) that the FMU lacks and the port map does not name is left
+    optional port (OPTIONAL_PORTS) that the FMU lacks and the port map does not name is left
     out. Raises ValueError naming the component, the role and the variable.
     """
     if role not in ROLES:
@@ -80,7 +80,7 @@ def check_component(component: str, role: str, spec: FmuSpec, description) -> di
         name = spec.variable(port)
         wanted = "input" if port in _ROLE_INPUTS[role] else "output"
         variable = variables.get(name)
-        if variable is None and port in OPTIONAL_OUTPUTS[role] and port not in spec.ports:
+        if variable is None and port in OPTIONAL_PORTS[role] and port not in spec.ports:
             continue
         if variable is None:
             raise ValueError(f"{component}: role {port!r} maps to variable {name!r}, which "
@@ -166,10 +166,13 @@ class Component:
         self.input_index = {port: i for i, port in enumerate(input_roles)}
         self.output_index = {port: i for i, port in enumerate(output_roles)}
         present = [p for p in output_roles if p in ports]
+        present_inputs = [p for p in input_roles if p in ports]
         self.missing_outputs: tuple[str, ...] = tuple(p for p in output_roles if p not in ports)
         """Optional output roles the FMU does not have (their `outputs` slots hold NaN)."""
+        self.missing_inputs: tuple[str, ...] = tuple(p for p in input_roles if p not in ports)
+        """Optional input roles the FMU does not have (what is written to their slots is unused)."""
         try:
-            self._slave = FastSlave(path, [ports[p] for p in input_roles],
+            self._slave = FastSlave(path, [ports[p] for p in present_inputs],
                                     [ports[p] for p in present], start_values,
                                     instance_name=name, unzip_dir=unzip_dir)
         except ValueError as error:
@@ -181,7 +184,7 @@ class Component:
         """(n_inputs,) buffer, role input order: write here, then step()."""
         self.conversions = dict(conversions or {})
         """role -> PortMap of the ports converted between the FMU's units and SI."""
-        if not self.missing_outputs and not self.conversions:
+        if not self.missing_outputs and not self.missing_inputs and not self.conversions:
             self.outputs: np.ndarray = self._slave.outputs()
             """(n_outputs,) buffer, role output order, refreshed by every step()."""
             self.step = self._slave.step
@@ -189,17 +192,18 @@ class Component:
         else:  # copies in role layout and SI units: only for FMUs that need them
             self.inputs = np.zeros(len(input_roles))
             self.outputs = np.full(len(output_roles), np.nan)
-            slots = np.array([output_roles.index(p) for p in present])
+            slots = np.array([output_roles.index(p) for p in present], dtype=int)
+            in_slots = np.array([input_roles.index(p) for p in present_inputs], dtype=int)
             # si = scale * fmu + offset, per slot (identity where a port is not converted).
-            in_scale, in_offset = _affine(input_roles, self.conversions)
+            in_scale, in_offset = _affine(tuple(present_inputs), self.conversions)
             out_scale, out_offset = _affine(tuple(present), self.conversions)
             slave_step, slave_in = self._slave.step, self._slave.inputs
             slave_out, outputs, inputs = self._slave.outputs(), self.outputs, self.inputs
-            inputs[:] = in_scale * slave_in + in_offset  # the start values, in SI
+            inputs[in_slots] = in_scale * slave_in + in_offset  # the start values, in SI
             outputs[slots] = out_scale * slave_out + out_offset
 
             def step(t_s: float, h_s: float) -> None:
-                slave_in[:] = (inputs - in_offset) / in_scale
+                slave_in[:] = (inputs[in_slots] - in_offset) / in_scale
                 slave_step(t_s, h_s)
                 outputs[slots] = out_scale * slave_out + out_offset
 
@@ -254,6 +258,8 @@ class Master:
                 if key not in _ROLE_INPUTS[role] + PARAMETER_ROLES[role]:
                     raise ValueError(f"{name}: start values are set by input or parameter "
                                      f"role, got {key!r}")
+                if key not in ports:  # an optional input the FMU does not have
+                    continue
                 # Start values come in the role's SI units: into the FMU's.
                 values[ports[key]] = conversions[key].from_si(value) if key in conversions \
                     else value

@@ -28,11 +28,13 @@ from __future__ import annotations
 
 import math
 import re
+from dataclasses import replace
 from functools import lru_cache
 
 import numpy as np
 
 from orchestrator.plants.arm_coupling import ArmCoupling
+from orchestrator.plants.arm_dynamics import ArmInertia
 from orchestrator.plants.identify import CylinderIdentification, identify_cylinder
 from orchestrator.plants.master import Master, check_component, fmu_path, port_conversions
 from plant_models.cylinder_model import CylinderModel
@@ -68,6 +70,8 @@ class SimulatedExcavator:
     def __init__(self, config: SimulatedExcavatorConfig) -> None:
         self.config = config
         self.coupling = _coupling(config.geometry)
+        self.inertia = ArmInertia(config.geometry)
+        reflected = self._reflected_design_inertia()
         self._master: Master | None = None
         self._closed = False
         self._rng = np.random.default_rng(config.seed)
@@ -85,9 +89,13 @@ class SimulatedExcavator:
             # scenario: unchanged); only an FMU with other parameter names is identified.
             model = given if given is not None or spec.linear_model is not None \
                 else _model_from_fmu(description, spec.parameters)
+            if given is None and model is not None and "mass_load" in ports:
+                # The FMU's mass is the piston's; the arm's inertia comes through mass_load.
+                model = replace(model, mass_kg=model.mass_kg + reflected[index])
             if model is None:
+                load_mass = {ports["mass_load"]: reflected[index]} if "mass_load" in ports else None
                 design, linear, identified = _linear_servo(joint, spec, stroke, config,
-                                                           conversions)
+                                                           conversions, load_mass)
                 designs.append(design)
                 linear_models.append(linear)
                 identifications.append(identified)
@@ -119,6 +127,15 @@ class SimulatedExcavator:
         if config.start_pose_rad is not None:
             self._start(np.asarray(config.start_pose_rad, dtype=float))
 
+    def _reflected_design_inertia(self) -> tuple[float, float, float]:
+        """M_ii / r_i^2 (kg) of each joint at the servo design pose (design strokes, else
+        mid-stroke): the load inertia each servo is designed for."""
+        strokes = self.config.design_strokes_m or tuple(
+            0.5 * table.stroke_m for table in self.coupling.tables)
+        joints = [self.coupling.joint_state(i, s) for i, s in enumerate(strokes)]
+        m00, m11, m22 = self.inertia.at(*(q for q, _ in joints), 0.0, 0.0, 0.0, 0.0)[:3]
+        return tuple(m / (r * r) for m, (_, r) in zip((m00, m11, m22), joints, strict=True))
+
     # ---- life cycle ----------------------------------------------------------------------------
 
     def _start(self, pose: np.ndarray) -> None:
@@ -133,8 +150,10 @@ class SimulatedExcavator:
         components = {j: ("cylinder", spec) for j, spec in zip(JOINT_NAMES, cfg.cylinders,
                                                                  strict=True)}
         components["pile"] = ("pile", cfg.pile)
-        start = {j: {"x0": float(s), "F_ext": float(f)}
-                 for j, s, f in zip(JOINT_NAMES, strokes, loads, strict=True)}
+        diagonal = self.inertia.at(*kinematics[:3], 0.0, 0.0, 0.0, 0.0)[:3]
+        start = {j: {"x0": float(s), "F_ext": float(f), "mass_load": m / (r * r)}
+                 for j, s, f, m, r in zip(JOINT_NAMES, strokes, loads, diagonal, kinematics[6:9],
+                                          strict=True)}
         start["pile"] = {"tip_y": tip_y, "tip_z": tip_z, "bucket_angle": -angle, "dump": 0.0}
         self._master = Master(components, cfg.communication_step_s, start)
         self._servos = tuple(JointServo(d) if isinstance(d, ServoDesign) else LinearJointServo(d)
@@ -225,6 +244,7 @@ class SimulatedExcavator:
         boom_step, stick_step, bucket_step, pile_step = (
             c.step for c in (boom, stick, bucket, pile))
         kinematics, loads = self.coupling.kinematics, self.coupling.loads
+        inertia, arm_slopes = self.inertia.at, self.coupling.arm_slopes
         command0, command1, command2 = (s.command for s in self._servos)
         x0r, x1r, x2r = (strokes[:, j].tolist() for j in range(3))
         v0r, v1r, v2r = (rates[:, j].tolist() for j in range(3))
@@ -247,6 +267,19 @@ class SimulatedExcavator:
                 pile_time += h
                 mass, force_y, force_z, removed, dumped, in_pile, surface = pile_out.tolist()
                 e0, e1, e2 = loads(pose, force_y, force_z, mass)
+                # The arm's inertia (orchestrator.plants.arm_dynamics): the diagonal reflected
+                # into each FMU's mass_load, the rest into F_ext: velocity products from this
+                # step's rates, the cross terms from the planned joint accelerations.
+                r0, r1, r2 = pose[6:9]
+                w0, w1, w2 = v0 / r0, v1 / r1, v2 / r2
+                m00, m11, m22, m01, m02, m12, h0, h1, h2 = inertia(q0, q1, q2, w0, w1, w2, mass)
+                d0, d1, d2 = arm_slopes(x0, x1, x2)
+                a0 = (a0r[k] - d0 * (v0r[k] / r0) ** 2) / r0
+                a1 = (a1r[k] - d1 * (v1r[k] / r1) ** 2) / r1
+                a2 = (a2r[k] - d2 * (v2r[k] / r2) ** 2) / r2
+                e0 += (m01 * a1 + m02 * a2 + h0) / r0 - m00 * d0 * w0 * w0 / (r0 * r0)
+                e1 += (m01 * a0 + m12 * a2 + h1) / r1 - m11 * d1 * w1 * w1 / (r1 * r1)
+                e2 += (m02 * a0 + m12 * a1 + h2) / r2 - m22 * d2 * w2 * w2 / (r2 * r2)
                 u0 = command0(x0r[k], v0r[k], a0r[k], x0, f0)
                 u1 = command1(x1r[k], v1r[k], a1r[k], x1, f1)
                 u2 = command2(x2r[k], v2r[k], a2r[k], x2, f2)
@@ -254,12 +287,9 @@ class SimulatedExcavator:
                 append_row((x0, v0, pa0, pb0, f0, u0, e0, x1, v1, pa1, pb1, f1, u1, e1,
                             x2, v2, pa2, pb2, f2, u2, e2, mass, force_y, force_z, removed,
                             dumped, in_pile, surface, tip_y, tip_z, angle))
-                boom_in[0] = u0
-                boom_in[1] = e0
-                stick_in[0] = u1
-                stick_in[1] = e1
-                bucket_in[0] = u2
-                bucket_in[1] = e2
+                boom_in[0], boom_in[1], boom_in[2] = u0, e0, m00 / (r0 * r0)
+                stick_in[0], stick_in[1], stick_in[2] = u1, e1, m11 / (r1 * r1)
+                bucket_in[0], bucket_in[1], bucket_in[2] = u2, e2, m22 / (r2 * r2)
                 t = steps * h
                 boom_step(t, h)
                 stick_step(t, h)
@@ -315,13 +345,15 @@ def _model_from_fmu(description, parameters) -> CylinderModel | None:
 
 
 def _linear_servo(joint: str, spec, stroke_m: float, config: SimulatedExcavatorConfig,
-                  conversions=None):
+                  conversions=None, load_mass: dict[str, float] | None = None):
     """(design, linear model, identification or None) of `joint`'s linear servo: on the
-    FmuSpec's linear_model, else on the model identified from the FMU."""
+    FmuSpec's linear_model, else on the model identified from the FMU (with `load_mass`, the
+    FMU variable taking the arm's reflected inertia -> kg, set during the test)."""
     identified = None
     model = spec.linear_model
     if model is None:
-        identified = identify_cylinder(fmu_path(spec, joint), spec.ports, spec.parameters,
+        parameters = {**spec.parameters, **(load_mass or {})}
+        identified = identify_cylinder(fmu_path(spec, joint), spec.ports, parameters,
                                        stroke_m, config.communication_step_s,
                                        conversions=conversions)
         model = identified.model

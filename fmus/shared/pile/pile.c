@@ -8,7 +8,10 @@
  * One step. The tip moves on a straight line from its position at the end of the last step to
  * the new input, in substeps of at most a quarter cell (in y and in z). Each substep:
  *  1. Cut: every cell the tip sweeps is cut down to the tip path (never below z_floor); the cut
- *     material enters the bucket. A vertical move sweeps no area and cuts nothing: the capacity
+ *     material enters the bucket while its edge leads (the tip-to-pin line at a rake <= 90 deg
+ *     to the move); beyond, only the share sin(rake) enters, down to none when the bucket's back
+ *     leads (the rest stays: the bucket pushes it aside). A vertical move sweeps no area and
+ *     cuts nothing: the capacity
  *     is filled by dragging, as a real bucket fills. When a cut would overflow `capacity`, all
  *     cut levels of the substep rise together until exactly the free volume is removed; with a
  *     full bucket nothing more is cut and the material stays where it is (the bucket pushes
@@ -97,14 +100,27 @@ static const char *check_inputs(const double *v)
 }
 
 /* Cuts along one substep into the bucket, never past its capacity; returns the cut volume. */
+/* Share of the swept material that enters the bucket for a move (dy, dz) with the tip-to-pin line
+ * at `angle`: all of it while the edge leads (rake to the move <= 90 deg), sin(rake) beyond, down
+ * to none with the bucket's back leading (rake 180 deg), where it pushes the soil aside. */
+static double fill_share(double angle, double dy, double dz)
+{
+    const double length = hypot(dy, dz);
+    if (!(length > 0.0)) return 1.0;
+    const double cos_rake = -(cos(angle) * dy + sin(angle) * dz) / length;
+    return cos_rake >= 0.0 ? 1.0 : sqrt(fmax(0.0, 1.0 - cos_rake * cos_rake));
+}
+
 static double cut_into_bucket(const double *v, PileState *s, const Grid *g, double ya, double za,
                             double yb, double zb)
 {
     const double capacity = v[VR_capacity], width = v[VR_slice_width];
     if (s->bucket_volume >= FULL_FRACTION * capacity) return 0.0;
-    const double free_area = (capacity - s->bucket_volume) / width;
+    const double swept = profile_sweep_area(&s->profile, g, ya, za, yb, zb, 0.0);
+    const double share = fill_share(v[VR_bucket_angle], yb - ya, zb - za);
+    const double free_area = fmin((capacity - s->bucket_volume) / width, share * swept);
     double lift = 0.0;
-    if (profile_sweep_area(&s->profile, g, ya, za, yb, zb, 0.0) > free_area) {
+    if (swept > free_area) {
         /* Raise the cut until it fits: the area falls monotonically with the lift and is zero
          * once every level is above the highest surface. */
         double top = s->profile.h[0], low = 0.0;
@@ -151,8 +167,9 @@ static void write_outputs(double *v, PileState *s, const Grid *g, double dy, dou
     v[VR_pile_mass] = density * width * profile_area(&s->profile, g);
     v[VR_surface_z_at_tip] = profile_surface_at(&s->profile, g, tip_y);
     for (int i = 0; i < N_h; ++i) v[VR_h_1 + i] = s->profile.h[i];
+    const int full = s->bucket_volume >= FULL_FRACTION * v[VR_capacity];
     const TipForce f = tip_force(v, &s->profile, g, tip_y, tip_z, dy, dz, v[VR_bucket_angle],
-                                 &s->mobilized);
+                                 full, &s->mobilized);
     v[VR_cut_depth] = f.depth;
     v[VR_F_y] = f.F_y;
     v[VR_F_z] = f.F_z;

@@ -19,10 +19,11 @@ const char *pile_check_resistance(const double *v);
 
 /* Cutting: the edge travels along the surface at `depth` (m, > 0) below it, its face at `rake`
  * (rad, in [SOIL_CUT_RAKE_MIN, pi/2]: the angle between the tip-to-pin line and the surface
- * behind the edge; pi/2 = a face normal to the surface). Writes the draft (N, >= 0, against the
- * travel) and the normal force (N, along the surface normal, > 0 pushes the edge out of the
- * soil). Both finite. */
-void pile_cutting_force(const double *v, double rake, double depth, double *draft,
+ * behind the edge; pi/2 = a face normal to the surface). `full`: the bucket is full, so what it
+ * cuts heaps in front of it instead of entering. Writes the draft (N, >= 0, against the travel)
+ * and the normal force (N, along the surface normal, > 0 pushes the edge out of the soil). Both
+ * finite. */
+void pile_cutting_force(const double *v, double rake, double depth, int full, double *draft,
                         double *normal);
 
 /* Penetration: the edge pushed into the soil along the surface normal, its tip `depth` (m, > 0)

@@ -83,7 +83,7 @@ static SurfaceLine side_line(const Profile *p, const Grid *g, double y, double z
 }
 
 TipForce tip_force(const double *v, const Profile *p, const Grid *g, double y, double z,
-                   double dy, double dz, double bucket_angle, Mobilization *m)
+                   double dy, double dz, double bucket_angle, int full, Mobilization *m)
 {
     TipForce f = {0.0, 0.0, 0.0};
     const double repose = v[VR_repose_angle], delta = v[VR_mobilization_length];
@@ -105,7 +105,7 @@ TipForce tip_force(const double *v, const Profile *p, const Grid *g, double y, d
         const double cos_rake = clamp(-(line_y * ty + line_z * tz), -1.0, 1.0);
         const double rake = clamp(acos(cos_rake), SOIL_CUT_RAKE_MIN, 0.5 * PI);
         double draft, normal;
-        pile_cutting_force(v, rake, line.depth, &draft, &normal);
+        pile_cutting_force(v, rake, line.depth, full, &draft, &normal);
         fy += m->side[i] * (-draft * ty + normal * ny);
         fz += m->side[i] * (-draft * tz + normal * nz);
     }

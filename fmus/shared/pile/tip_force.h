@@ -19,9 +19,9 @@ typedef struct {
 
 /* Moves the tip by (dy, dz) m to (y, z) with the tip-to-pin line at bucket_angle (rad,
  * counter-clockwise from +y), on the profile p as cut by that move: updates the mobilisation m
- * and returns the force there. v holds the parameters (value references as in model.h). All
+ * and returns the force there; `full`: the bucket is full (its cut heaps in front). v holds the parameters (value references as in model.h). All
  * inputs finite. */
 TipForce tip_force(const double *v, const Profile *p, const Grid *g, double y, double z,
-                   double dy, double dz, double bucket_angle, Mobilization *m);
+                   double dy, double dz, double bucket_angle, int full, Mobilization *m);
 
 #endif
