@@ -7,9 +7,11 @@ Per cylinder (fmus/HydraulicCylinder/model.c):
 to RK4's own error (tests/test_hydraulic_cylinder_energy.py derives it). Measured over the 20
 paper periods: 1e-14 of the energy supplied per cylinder (22.6 MJ in all, 95.6 % of it
 throttled); the bound, 1e-9 of the energy through the cylinder, leaves room for other CPUs'
-rounding and is far below any bookkeeping error (of the order of a term). The soil: the work of its force on the bucket tip over
-the periods, by the trapezoidal rule on the logged samples, is negative (it only dissipates and
-gives back at most the little elastic energy of its mobilisation).
+rounding and is far below any bookkeeping error (of the order of a term).
+
+The soil: the work of its force on the bucket tip over each period, by the trapezoidal rule on
+the logged samples, is negative (it dissipates, and gives back at most the little elastic
+energy of its mobilisation).
 """
 
 from pathlib import Path
