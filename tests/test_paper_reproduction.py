@@ -11,11 +11,12 @@ The campaign runs once (a few seconds) and is shared by the tests.
 
 On the `paper` machine with its 3.18 m long stick (plant_models.presets) the planned path stays
 inside the stick's range down to z_D = -2.30 m below y = -9 m. The paper's error criterion is
-NOT met since the pile's physics was corrected (soil force in the surface frame on the whole
-bucket edge, a slope model that agrees with the soil's strength): the best calibration found
-(700 campaigns in two searches, notes in the scenario file) keeps 15 of 18 periods within
-+-5 kg, three beyond (periods 2, 5, 15), 13 within +-3 kg. MAX_MISSES pins that, so a change that makes it worse
-fails; the paper's value is PAPER_MAX_MISSES.
+NOT met since the plant's physics was corrected (soil force in the surface frame on the whole
+bucket edge, a pose-dependent arm inertia, a slope model that agrees with the soil's
+strength): the best calibration found (700 campaigns in two searches, notes in the scenario
+file) keeps 15 of 18 periods within +-5 kg, three beyond (periods 2, 5, 15), 13 within +-3 kg.
+MAX_MISSES pins that, so a change that makes it worse fails; the paper's value is
+PAPER_MAX_MISSES.
 """
 
 from pathlib import Path
