@@ -83,7 +83,8 @@ def recorded_inputs(scenario, measurements) -> dict[str, tuple[dict, dict]]:
     for joint in JOINT_NAMES:
         spec = getattr(scenario.plant, joint)
         inputs = {spec.ports.get(role, role): np.concatenate(
-            [m.signals[f"{joint}.{role}"] for m in measurements]) for role in ("u", "F_ext")}
+            [m.signals[f"{joint}.{role}"] for m in measurements])
+            for role in ("u", "F_ext", "mass_load")}
         x0 = float(measurements[0].signals[f"{joint}.x"][0])
         series[joint] = (inputs, {**spec.parameters, spec.ports.get("x0", "x0"): x0})
     pile = scenario.plant.pile

@@ -170,6 +170,17 @@ def cylinder_parameters(preset: str) -> dict[str, dict[str, float]]:
     return parameters
 
 
+def design_cylinder_parameters(preset: str) -> dict[str, dict[str, float]]:
+    """`cylinder_parameters` with the arm's inertia at the design pose folded into `mass`: one
+    cylinder FMU alone that moves like the servo's model (`cylinder_model`), for stand-alone
+    checks of the servo and of identification."""
+    geometry = presets.get(preset)
+    parameters = cylinder_parameters(preset)
+    for joint in JOINT_NAMES:
+        parameters[joint]["mass"] += reflected_mass_kg(geometry, joint, _DESIGN_POSES[preset])
+    return parameters
+
+
 def cylinder_model(preset: str, joint: str) -> CylinderModel:
     """The servo's model of `joint`'s cylinder in `preset`: our FMU's parameters, with the link
     inertia reflected onto the rod at the design pose added to the piston's mass (the FMU gets

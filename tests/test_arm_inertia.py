@@ -70,6 +70,26 @@ def test_the_couplings_scalar_inertia_is_the_mass_matrix_and_lagranges_torques(q
     assert np.all(np.abs(np.array(values[6:]) - lagrange) <= bound + 1e-9 * np.abs(lagrange))
 
 
+def test_the_couplings_per_step_path_equals_the_reference():
+    # The step loop takes the links' cos and sin from ArmCoupling.kinematics, not from q.
+    from orchestrator.plants.arm_coupling import ArmCoupling
+
+    geometry = presets.get("paper")
+    coupling, inertia = ArmCoupling(geometry), ArmInertia(geometry)
+    for fraction in (0.2, 0.5, 0.8):
+        strokes = [fraction * table.stroke_m for table in coupling.tables]
+        kinematics = coupling.kinematics(*strokes)
+        rates = (0.2, -0.4, 0.6)
+        assert inertia.at_pose(kinematics, *rates, PAYLOAD_KG) == pytest.approx(
+            inertia.at(*kinematics[:3], *rates, PAYLOAD_KG), rel=1e-12)
+        # d(arm)/d(angle) of the tables against a central difference of the arm
+        for j in range(3):
+            step = 1e-4 * coupling.tables[j].stroke_m
+            (q_hi, r_hi), (q_lo, r_lo) = (coupling.joint_state(j, strokes[j] + s)
+                                          for s in (step, -step))
+            assert kinematics[21 + j] == pytest.approx((r_hi - r_lo) / (q_hi - q_lo), rel=1e-3)
+
+
 def test_the_stick_and_bucket_are_strongly_coupled():
     # Why the cross terms cannot be fed back explicitly through measured accelerations (see
     # orchestrator.plants.arm_dynamics): their coupling ratio reaches 0.7 on the paper arm.

@@ -361,9 +361,12 @@ def test_every_parameter_has_physical_bounds_and_the_inputs_are_open(fmu):
     ({"mass_load": -1.0}, "mass_load must lie in [0, 1e12] kg"),
 ])
 def test_meaningless_parameters_are_refused_at_initialization(fmu, capfd, start, message):
-    with pytest.raises(Exception, match="fmi2ExitInitializationMode"):
+    # Refused by the model at initialization (a condition across variables), or already when
+    # set by the shared layer (a value outside the table's range, named with it).
+    with pytest.raises(Exception, match="fmi2ExitInitializationMode|fmi2SetReal"):
         FastSlave(fmu, ["u"], ["x"], start)
-    assert message in capfd.readouterr().out
+    out = capfd.readouterr().out
+    assert message in out or any(f"'{name}' lies outside its range" in out for name in start)
 
 
 @pytest.mark.parametrize("name, value", [
@@ -446,6 +449,7 @@ def test_changing_mass_load_stays_stable_and_books_its_kinetic_energy(fmu, par):
 def test_negative_mass_load_is_refused_at_the_step(fmu, capfd):
     with FastSlave(fmu, ["u", "mass_load"], ["x"], {}) as slave:
         slave.step(0.0, H, np.array([0.0, 10.0]))
-        with pytest.raises(Exception, match="fmi2DoStep"):
+        with pytest.raises(Exception, match="fmi2SetReal|fmi2DoStep"):
             slave.step(H, H, np.array([0.0, -1.0]))
-    assert "mass_load must lie in [0, 1e12] kg" in capfd.readouterr().out
+    out = capfd.readouterr().out  # the shared layer's range check, or the model's own
+    assert "mass_load must lie in [0, 1e12] kg" in out or "'mass_load' lies outside" in out

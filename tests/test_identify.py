@@ -9,13 +9,17 @@ from scipy.optimize import brentq
 
 import fmus
 from orchestrator.plants.identify import identify_cylinder
-from plant_models.hydraulics import COMMUNICATION_STEP_S, cylinder_model, cylinder_parameters
+from plant_models.hydraulics import (
+    COMMUNICATION_STEP_S,
+    cylinder_model,
+    design_cylinder_parameters,
+)
 
 
 def analytic_velocity_gain(preset, joint, command):
     """Steady v / u at F_ext = 0: the valve law's opening(v, F) = u with the hydraulic force F
     that balances the friction (viscous plus the smoothed Coulomb term)."""
-    model, parameters = cylinder_model(preset, joint), cylinder_parameters(preset)[joint]
+    model, parameters = cylinder_model(preset, joint), design_cylinder_parameters(preset)[joint]
 
     def friction(v):
         return parameters["b_viscous"] * v \
@@ -29,7 +33,7 @@ def analytic_velocity_gain(preset, joint, command):
 def identified(preset, joint):
     model = cylinder_model(preset, joint)
     return identify_cylinder(fmus.build("HydraulicCylinder"), {},
-                             cylinder_parameters(preset)[joint], model.stroke_m,
+                             design_cylinder_parameters(preset)[joint], model.stroke_m,
                              COMMUNICATION_STEP_S[preset])
 
 
@@ -61,7 +65,7 @@ def test_identification_is_cached_by_content_and_settings():
     first = identified("paper", "bucket")
     assert identified("paper", "bucket") is first
     other = identify_cylinder(fmus.build("HydraulicCylinder"), {},
-                              cylinder_parameters("paper")["bucket"], 1.038,
+                              design_cylinder_parameters("paper")["bucket"], 1.038,
                               COMMUNICATION_STEP_S["paper"], openings=(0.2,),
                               stroke_fractions=(0.5,))
     assert other is not first and len(other.fits) == 2
@@ -80,13 +84,13 @@ def test_a_first_order_actuator_is_overdamped():
 
 
 def test_a_cylinder_that_does_not_move_is_a_clear_error():
-    parameters = {**cylinder_parameters("paper")["bucket"], "q_rated": 1e-15}
+    parameters = {**design_cylinder_parameters("paper")["bucket"], "q_rated": 1e-9}
     with pytest.raises(ValueError, match=r"HydraulicCylinder\.fmu .*x did not move") as error:
         identify_cylinder(fmus.build("HydraulicCylinder"), {}, parameters, 1.038, 0.01)
     assert "\n" not in str(error.value)
 
 
 def test_a_failing_fmu_is_a_clear_error():
-    parameters = {**cylinder_parameters("paper")["bucket"], "rod": 0.5}  # rod wider than bore
+    parameters = {**design_cylinder_parameters("paper")["bucket"], "rod": 0.5}  # rod > bore
     with pytest.raises(ValueError, match=r"HydraulicCylinder\.fmu .*open-loop test failed"):
         identify_cylinder(fmus.build("HydraulicCylinder"), {}, parameters, 1.038, 0.01)

@@ -13,7 +13,7 @@ import pytest
 
 import fmus
 from fmus.runs import FastSlave
-from plant_models.hydraulics import cylinder_model, cylinder_parameters, default_config
+from plant_models.hydraulics import cylinder_model, default_config, design_cylinder_parameters
 from plant_models.linear_cylinder import LinearCylinderModel
 from plant_models.linear_servo import LinearJointServo, design_linear_servo
 
@@ -133,7 +133,7 @@ def test_given_model_tracks_a_copy_of_our_cylinder(tmp_path):
     v_ref = np.concatenate([0 * hold, (high - low) * rate, 0 * hold, -(high - low) * rate,
                             0 * hold])
     load = 2.0e4
-    start = {**cylinder_parameters("paper")["bucket"], "x0": low, "F_ext": load}
+    start = {**design_cylinder_parameters("paper")["bucket"], "x0": low, "F_ext": load}
     errors = []
     with FastSlave(copy, ["u", "F_ext"], ["x", "F"], start) as slave:
         x, force = slave.outputs()

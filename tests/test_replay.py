@@ -151,10 +151,12 @@ def test_a_killed_run_replays_its_complete_periods(paper_run, tmp_path):
 
 
 def test_a_run_that_hit_the_workspace_limit_replays_to_the_same_end(runs):
-    # D0 near the long stick's reach (z = -2.30 m at y = -9 m, scenarios/paper-2020.toml) and
-    # a target the bucket cannot hold: period 3 would be out of reach, the shift by 20 m too.
+    # A deep D0 and a target far above what the periods dig: the steps reach the long stick's
+    # reach (z = -2.30 m at y = -9 m) in period 3, and the shift by 20 m is out of reach too. A
+    # bucket that never fills: a full one dragged deep pushes more spoil than it can cut.
     path, records = _campaign(runs, "workspace", load_scenario(PAPER, [
-        "periods=5", "adaptation.z_D0_m=-2.0", "adaptation.dy_0_m=20", "target_mass_kg=300"]))
+        "periods=5", "adaptation.z_D0_m=-0.6", "adaptation.dy_0_m=20", "target_mass_kg=300",
+        "plant.pile.parameters.capacity=0.5"]))
     assert read_run(path).termination == "workspace_limit" and len(records) < 5
     report = replay_run(path)
     _assert_repeats(report, records)

@@ -14,7 +14,7 @@ from fmus.runs import run_fmpy
 from plant_models.hydraulics import (
     COMMUNICATION_STEP_S,
     cylinder_model,
-    cylinder_parameters,
+    design_cylinder_parameters,
     design_strokes_m,
 )
 from plant_models.linkage import JOINT_NAMES
@@ -51,7 +51,7 @@ def loops_from_physics(parameters, stroke, step, kp, kf, w_f):
 @pytest.mark.parametrize("preset,joint", CASES)
 def test_margins_and_stability_of_the_discretised_loops(preset, joint):
     design = design_for(preset, joint)
-    parameters = cylinder_parameters(preset)[joint]
+    parameters = design_cylinder_parameters(preset)[joint]
     strokes = (design.design_stroke_m, 0.05 * parameters["stroke"], 0.95 * parameters["stroke"])
     for stroke in strokes:
         position, pressure = loops_from_physics(
@@ -81,7 +81,7 @@ def test_pressure_feedback_damps_the_hydraulic_mode(preset, joint):
     """Inner loop closed: every oscillating pole has at least the design's damping (the high-
     pass filter adds some), where friction alone leaves about 0.001-0.01."""
     design = design_for(preset, joint)
-    parameters = cylinder_parameters(preset)[joint]
+    parameters = design_cylinder_parameters(preset)[joint]
 
     def damping_of_oscillating_poles(pressure_gain):
         position, _ = loops_from_physics(parameters, design.design_stroke_m, design.step_s, 1.0,
@@ -127,7 +127,7 @@ def test_valve_law_inverts_the_fmu_steady_state(u, load):
     """Drive the HydraulicCylinder FMU at a constant opening and load until steady; the valve
     law, given the resulting velocity and hydraulic force (friction included), returns that
     opening."""
-    parameters = cylinder_parameters("paper")["bucket"]
+    parameters = design_cylinder_parameters("paper")["bucket"]
     # The rod's own mass only, so friction settles the hydraulic mode within the run.
     parameters = {**parameters, "mass": 120.0, "x0": 0.5}
     n = 600

@@ -76,25 +76,20 @@ class ArmCoupling:
     def joint_state(self, index: int, stroke_m: float) -> tuple[float, float]:
         """(angle rad, moment arm m/rad) of joint `index` (0 boom, 1 stick, 2 bucket) at
         stroke_m (m), clamped to the stroke range."""
+        return self._joint(index, stroke_m)[:2]
+
+    def _joint(self, index: int, stroke_m: float) -> tuple[float, float, float]:
+        """joint_state and d(arm)/d(angle) (m/rad): the linear arm's slope per stroke times
+        the arm (d/dq = r d/dx)."""
         table = self.tables[index]
         position = stroke_m * table.inv_dx
         i = int(position)
         i = 0 if i < 0 else (TABLE_INTERVALS - 1 if i >= TABLE_INTERVALS else i)
         fraction = position - i
         t = 0.0 if fraction < 0.0 else (1.0 if fraction > 1.0 else fraction)
+        arm = table.arm[i] + table.arm_slope[i] * t
         return (table.angle[i] + t * (table.c1[i] + t * (table.c2[i] + t * table.c3[i])),
-                table.arm[i] + table.arm_slope[i] * t)
-
-    def arm_slopes(self, x0: float, x1: float, x2: float) -> tuple[float, float, float]:
-        """d(moment arm)/d(angle) (m/rad) of each joint at strokes x0, x1, x2 (m): the slope
-        of the table's linear arm per stroke times the arm (d/dq = r d/dx)."""
-        out = []
-        for table, stroke in zip(self.tables, (x0, x1, x2), strict=True):
-            i = min(max(int(stroke * table.inv_dx), 0), TABLE_INTERVALS - 1)
-            fraction = min(max(stroke * table.inv_dx - i, 0.0), 1.0)
-            arm = table.arm[i] + table.arm_slope[i] * fraction
-            out.append(table.arm_slope[i] * table.inv_dx * arm)
-        return out[0], out[1], out[2]
+                arm, table.arm_slope[i] * table.inv_dx * arm)
 
     def pose(self, q0: float, q1: float, q2: float) -> tuple[float, float, float]:
         """Bucket tip y, z (m) and absolute bucket angle (rad) at joint angles (rad)."""
@@ -111,11 +106,12 @@ class ArmCoupling:
         Returns a flat tuple (for speed): q0, q1, q2 (rad), tip_y, tip_z (m), bucket angle (rad),
         then what `loads` needs: moment arms r0, r1, r2 (m/rad), gravity holding torques of the
         links (N m), holding torque per kg of payload (N m/kg) per joint, and the tip's offsets
-        from the three pins (m).
+        from the three pins (m); then d(arm)/d(angle) per joint (m/rad) and cos, sin of the
+        three links' absolute angles (for orchestrator.plants.arm_dynamics).
         """
-        q0, r0 = self.joint_state(0, x0)
-        q1, r1 = self.joint_state(1, x1)
-        q2, r2 = self.joint_state(2, x2)
+        q0, r0, d0 = self._joint(0, x0)
+        q1, r1, d1 = self._joint(1, x1)
+        q2, r2, d2 = self._joint(2, x2)
         (l1, l2, l3), (foot_y, foot_z) = self._lengths, self._foot
         phi2 = q0 + q1
         phi3 = phi2 + q2
@@ -139,6 +135,7 @@ class ArmCoupling:
             GRAVITY_M_S2 * (pin_y - com3),
             tip_y - foot_y, tip_z - foot_z, tip_y - stick_y, tip_z - stick_z,
             tip_y - pin_y, tip_z - pin_z,
+            d0, d1, d2, c1, s1, c2, s2, c3, s3,
         )
 
     @staticmethod
@@ -146,8 +143,8 @@ class ArmCoupling:
               payload_kg: float) -> tuple[float, float, float]:
         """Cylinder loads F_ext (N, positive resisting extension) of boom, stick and bucket,
         from `kinematics(...)`, the soil force (N) at the tip and the payload (kg)."""
-        (_, _, _, _, _, _, r0, r1, r2, hold0, hold1, hold2, per_kg0, per_kg1, per_kg2,
-         dy0, dz0, dy1, dz1, dy2, dz2) = kinematics
+        (r0, r1, r2, hold0, hold1, hold2, per_kg0, per_kg1, per_kg2,
+         dy0, dz0, dy1, dz1, dy2, dz2) = kinematics[6:21]
         return ((hold0 + payload_kg * per_kg0 - (force_y * dz0 - force_z * dy0)) / r0,
                 (hold1 + payload_kg * per_kg1 - (force_y * dz1 - force_z * dy1)) / r1,
                 (hold2 + payload_kg * per_kg2 - (force_y * dz2 - force_z * dy2)) / r2)

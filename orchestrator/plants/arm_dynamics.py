@@ -50,13 +50,22 @@ class ArmInertia:
         """At joints q (rad) turning at w (rad/s) with payload_kg in the bucket: the mass
         matrix entries M00, M11, M22, M01, M02, M12 (kg m^2) and the velocity-product joint
         torques h0, h1, h2 (N m; M qdd + h is the torque the arm's inertia takes)."""
+        p2 = q0 + q1
+        p3 = p2 + q2
+        return self._at(math.cos(q0), math.sin(q0), math.cos(p2), math.sin(p2), math.cos(p3),
+                        math.sin(p3), w0, w1, w2, payload_kg)
+
+    def at_pose(self, kinematics: tuple[float, ...], w0: float, w1: float, w2: float,
+                payload_kg: float) -> tuple[float, ...]:
+        """`at` from ArmCoupling.kinematics(...) (its link angles' cos and sin)."""
+        c1, s1, c2, s2, c3, s3 = kinematics[24:30]
+        return self._at(c1, s1, c2, s2, c3, s3, w0, w1, w2, payload_kg)
+
+    def _at(self, c1: float, s1: float, c2: float, s2: float, c3: float, s3: float,
+            w0: float, w1: float, w2: float, payload_kg: float) -> tuple[float, ...]:
         (m1, m2, m3), (l1, l2, l3) = self._masses, self._lengths
         m3 += payload_kg
         (u1, v1), (u2, v2), (u3, v3) = self._coms
-        p1, p2 = q0, q0 + q1
-        p3 = p2 + q2
-        c1, s1, c2, s2, c3, s3 = (math.cos(p1), math.sin(p1), math.cos(p2), math.sin(p2),
-                                  math.cos(p3), math.sin(p3))
         # e_k = (-c, s), n_k = (s, c).
         g1y, g1z = u1 * s1 + v1 * c1, u1 * c1 - v1 * s1
         g2y, g2z = u2 * s2 + v2 * c2, u2 * c2 - v2 * s2

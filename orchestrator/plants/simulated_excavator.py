@@ -20,7 +20,8 @@ continues from there: its reference must start within `start_tolerance_rad` of t
 
 Measurement rows are samples at t_k (period time from 0): joints and cylinder outputs at t_k,
 the Pile's outputs after its step to the tip at t_k, and the inputs (u, F_ext) held from t_k.
-Signals: "<joint>.x, .v, .p_A, .p_B, .F" (cylinder outputs by role), "<joint>.u, .F_ext",
+Signals: "<joint>.x, .v, .p_A, .p_B, .F" (cylinder outputs by role), "<joint>.u, .F_ext,
+.mass_load" (inputs),
 "pile.<output role>", "tip.y", "tip.z", "tip.bucket_angle".
 """
 
@@ -47,7 +48,7 @@ from plant_models.servo import JointServo, ServoDesign, design_servo
 from plant_models.sim_config import SimulatedExcavatorConfig
 
 _COLUMNS = (
-    *(f"{j}.{n}" for j in JOINT_NAMES for n in (*CYLINDER_OUTPUTS, "u", "F_ext")),
+    *(f"{j}.{n}" for j in JOINT_NAMES for n in (*CYLINDER_OUTPUTS, "u", "F_ext", "mass_load")),
     *(f"pile.{n}" for n in PILE_OUTPUTS),
     "tip.y", "tip.z", "tip.bucket_angle",
 )
@@ -244,7 +245,7 @@ class SimulatedExcavator:
         boom_step, stick_step, bucket_step, pile_step = (
             c.step for c in (boom, stick, bucket, pile))
         kinematics, loads = self.coupling.kinematics, self.coupling.loads
-        inertia, arm_slopes = self.inertia.at, self.coupling.arm_slopes
+        inertia = self.inertia.at_pose
         command0, command1, command2 = (s.command for s in self._servos)
         x0r, x1r, x2r = (strokes[:, j].tolist() for j in range(3))
         v0r, v1r, v2r = (rates[:, j].tolist() for j in range(3))
@@ -272,8 +273,8 @@ class SimulatedExcavator:
                 # step's rates, the cross terms from the planned joint accelerations.
                 r0, r1, r2 = pose[6:9]
                 w0, w1, w2 = v0 / r0, v1 / r1, v2 / r2
-                m00, m11, m22, m01, m02, m12, h0, h1, h2 = inertia(q0, q1, q2, w0, w1, w2, mass)
-                d0, d1, d2 = arm_slopes(x0, x1, x2)
+                m00, m11, m22, m01, m02, m12, h0, h1, h2 = inertia(pose, w0, w1, w2, mass)
+                d0, d1, d2 = pose[21:24]
                 a0 = (a0r[k] - d0 * (v0r[k] / r0) ** 2) / r0
                 a1 = (a1r[k] - d1 * (v1r[k] / r1) ** 2) / r1
                 a2 = (a2r[k] - d2 * (v2r[k] / r2) ** 2) / r2
@@ -284,12 +285,13 @@ class SimulatedExcavator:
                 u1 = command1(x1r[k], v1r[k], a1r[k], x1, f1)
                 u2 = command2(x2r[k], v2r[k], a2r[k], x2, f2)
                 append_joints((q0, q1, q2))
-                append_row((x0, v0, pa0, pb0, f0, u0, e0, x1, v1, pa1, pb1, f1, u1, e1,
-                            x2, v2, pa2, pb2, f2, u2, e2, mass, force_y, force_z, removed,
+                l0, l1, l2 = m00 / (r0 * r0), m11 / (r1 * r1), m22 / (r2 * r2)
+                append_row((x0, v0, pa0, pb0, f0, u0, e0, l0, x1, v1, pa1, pb1, f1, u1, e1, l1,
+                            x2, v2, pa2, pb2, f2, u2, e2, l2, mass, force_y, force_z, removed,
                             dumped, in_pile, surface, tip_y, tip_z, angle))
-                boom_in[0], boom_in[1], boom_in[2] = u0, e0, m00 / (r0 * r0)
-                stick_in[0], stick_in[1], stick_in[2] = u1, e1, m11 / (r1 * r1)
-                bucket_in[0], bucket_in[1], bucket_in[2] = u2, e2, m22 / (r2 * r2)
+                boom_in[0], boom_in[1], boom_in[2] = u0, e0, l0
+                stick_in[0], stick_in[1], stick_in[2] = u1, e1, l1
+                bucket_in[0], bucket_in[1], bucket_in[2] = u2, e2, l2
                 t = steps * h
                 boom_step(t, h)
                 stick_step(t, h)
