@@ -81,11 +81,10 @@ def bench_ours(config, inputs, starts, step: float) -> tuple[float, float]:
             t = k * step
             for name, slave in slaves.items():
                 slave.inputs[:] = rows[name][k]
-                if slave._set_real(slave._component, slave._vr_in, slave._n_in,
-                                   slave._in_ptr) > 1:
+                if slave._set() > 1:
                     raise RuntimeError("fmi2SetReal failed")
                 started = time.perf_counter_ns()
-                status = slave._do_step(slave._component, t, step, 1)
+                status = slave._do_step(t, step, 1)
                 do_step_ns += time.perf_counter_ns() - started
                 if status > 1:
                     raise RuntimeError("fmi2DoStep failed")

@@ -4,7 +4,9 @@ Both runners do the same thing, so their results can be compared value for value
 start values (parameters, and the inputs' first samples) are set before initialization; then,
 for k = 0..n-1, the inputs' k-th samples are set and the FMU steps from t_k = k*h to t_k + h.
 Outputs come back as arrays of shape (n + 1,): sample 0 after initialization, sample k after
-step k. Only Real inputs and outputs are exchanged; start values may be Real, Integer or Boolean.
+step k. Only Real (FMI 3.0: Float64) inputs and outputs are exchanged; start values may be of
+any real, integer or boolean type. FastSlave and run_fmpy take FMI 2.0 and FMI 3.0
+co-simulation FMUs alike.
 
 run_ecospy needs the `ecospy` and `tbb` packages (test extra); it loads libtbb itself.
 """
@@ -12,6 +14,8 @@ run_ecospy needs the `ecospy` and `tbb` packages (test extra); it loads libtbb i
 from __future__ import annotations
 
 import ctypes
+import functools
+import re
 import shutil
 import sys
 import tempfile
@@ -20,7 +24,27 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["run_fmpy", "run_ecospy", "load_ecospy", "FastSlave"]
+__all__ = ["run_fmpy", "run_ecospy", "load_ecospy", "FastSlave", "fmi_major", "value_kind",
+           "REAL_TYPES"]
+
+REAL_TYPES = ("Real", "Float64")  # the FMI 2.0 and FMI 3.0 names of a double
+_INTEGER = re.compile(r"^(Integer|U?Int(8|16|32|64))$")
+
+
+def fmi_major(description) -> int | None:
+    """2 or 3 for an FMI 2.0 / 3.0 model description, None for any other version."""
+    major = str(description.fmiVersion).split(".")[0]
+    return int(major) if major in ("2", "3") else None
+
+
+def value_kind(type_name: str) -> str | None:
+    """"Real", "Integer" or "Boolean" for an FMI 2.0 or 3.0 variable type (Float64 and Float32
+    are Real, Int8..UInt64 Integer); None for any other (String, Binary, Clock, Enumeration)."""
+    if type_name in ("Real", "Float64", "Float32"):
+        return "Real"
+    if _INTEGER.match(type_name):
+        return "Integer"
+    return "Boolean" if type_name == "Boolean" else None
 
 
 def _check_series(inputs: Mapping[str, np.ndarray]) -> int:
@@ -36,7 +60,7 @@ def _typed_start_values(description, start_values: Mapping[str, float]) -> dict:
     for name, value in start_values.items():
         if name not in types:
             raise ValueError(f"{description.modelName} has no variable '{name}'")
-        convert = {"Real": float, "Integer": int, "Boolean": bool}.get(types[name])
+        convert = {"Real": float, "Integer": int, "Boolean": bool}.get(value_kind(types[name]))
         if convert is None:
             raise ValueError(f"variable '{name}' has unsupported type {types[name]}")
         typed[name] = convert(value)
@@ -46,32 +70,42 @@ def _typed_start_values(description, start_values: Mapping[str, float]) -> dict:
 class FastSlave:
     """One FMU instance driven through fmpy's raw ctypes functions with pre-allocated buffers.
 
-    `fmu` is a .fmu path; `inputs`/`outputs` are Real variable names. After construction the
-    instance is initialized; `step(t, h, values)` sets the inputs (shape (n_inputs,)), steps and
-    returns the outputs (shape (n_outputs,), a view of an internal buffer: copy it to keep it).
-    Given `unzip_dir` (an extracted FMU), instances share that folder and its loaded binary;
-    otherwise each instance extracts its own copy and removes it on close().
+    `fmu` is a .fmu path (or an extracted FMU's folder) of an FMI 2.0 or 3.0 co-simulation FMU;
+    `inputs`/`outputs` are names of Real (FMI 3.0: scalar Float64) variables. After
+    construction the instance is initialized; `step(t, h, values)` sets the inputs (shape
+    (n_inputs,)), steps and returns the outputs (shape (n_outputs,), a view of an internal
+    buffer: copy it to keep it). Given `unzip_dir` (an extracted FMU), instances share that
+    folder and its loaded binary; otherwise each instance extracts its own copy and removes it
+    on close().
     """
 
     def __init__(self, fmu: str | Path, inputs: Sequence[str], outputs: Sequence[str],
                  start_values: Mapping[str, float] | None = None,
                  instance_name: str = "instance", unzip_dir: str | Path | None = None) -> None:
         from fmpy import extract, read_model_description
-        from fmpy.fmi2 import FMU2Slave, fmi2Real, fmi2ValueReference
+        from fmpy.fmi2 import FMU2Slave
+        from fmpy.fmi3 import FMU3Slave
 
         self.description = read_model_description(str(fmu))
+        self.fmi_version = fmi_major(self.description)
+        if self.fmi_version is None or self.description.coSimulation is None:
+            raise ValueError(f"{self.description.modelName} is not an FMI 2.0 or 3.0 "
+                             "co-simulation FMU")
         variables = {v.name: v for v in self.description.modelVariables}
         for name in [*inputs, *outputs]:
-            if name not in variables or variables[name].type != "Real":
+            variable = variables.get(name)
+            if variable is None or variable.type not in REAL_TYPES \
+                    or getattr(variable, "dimensions", None):
                 raise ValueError(f"{self.description.modelName} has no Real variable '{name}'")
         self._owns_unzip_dir = unzip_dir is None
         self._unzip_dir = str(unzip_dir) if unzip_dir is not None else extract(
             str(fmu), unzipdir=tempfile.mkdtemp(prefix="excosim-fmu-"))
         self.slave = None
         try:
-            self.slave = FMU2Slave(guid=self.description.guid, unzipDirectory=self._unzip_dir,
-                                   modelIdentifier=self.description.coSimulation.modelIdentifier,
-                                   instanceName=instance_name)
+            kind = FMU2Slave if self.fmi_version == 2 else FMU3Slave
+            self.slave = kind(guid=self.description.guid, unzipDirectory=self._unzip_dir,
+                              modelIdentifier=self.description.coSimulation.modelIdentifier,
+                              instanceName=instance_name)
             self._initialize(variables, start_values or {})
         except BaseException:
             if self.slave is not None:
@@ -79,54 +113,101 @@ class FastSlave:
                 self.slave = None
             self._remove_unzip_dir()
             raise
+        self._vr = {name: v.valueReference for name, v in variables.items()}
+        self._bind(inputs, outputs)
 
-        # Our own function pointers into the loaded binary, without fmpy's logging wrapper and
-        # with pre-converted arguments: ctypes' per-call argument conversion costs more than
-        # the FMI call itself (about 2 us versus 0.5 us per fmi2GetReal here).
-        dll = self.slave.dll
-        self._set_real = dll._FuncPtr(("fmi2SetReal", dll))
-        self._get_real = dll._FuncPtr(("fmi2GetReal", dll))
-        self._do_step = dll._FuncPtr(("fmi2DoStep", dll))
-        self._do_step.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int]
-        self._component = ctypes.c_void_p(self.slave.component)
-        self._vr_in = (fmi2ValueReference * len(inputs))(
-            *[variables[n].valueReference for n in inputs])
-        self._vr_out = (fmi2ValueReference * len(outputs))(
-            *[variables[n].valueReference for n in outputs])
-        self._n_in, self._n_out = ctypes.c_size_t(len(inputs)), ctypes.c_size_t(len(outputs))
+    def _bind(self, inputs: Sequence[str], outputs: Sequence[str]) -> None:
+        """Our own function pointers into the loaded binary, without fmpy's logging wrapper and
+        with pre-converted arguments, bound into argument-free calls: ctypes' per-call argument
+        conversion costs more than the FMI call itself (about 2 us versus 0.5 us per
+        fmi2GetReal here). FMI 3.0's fmi3SetFloat64 / fmi3GetFloat64 take the value count as
+        well, and fmi3DoStep four result flags (pre-allocated here)."""
+        dll, version = self.slave.dll, self.fmi_version
+        names = ("fmi2SetReal", "fmi2GetReal", "fmi2DoStep") if version == 2 else \
+            ("fmi3SetFloat64", "fmi3GetFloat64", "fmi3DoStep")
+        self._names = names
+        set_real, get_real, do_step = (dll._FuncPtr((n, dll)) for n in names)
+        component = ctypes.c_void_p(self.slave.component)
+        reference = ctypes.c_uint  # fmi2ValueReference and fmi3ValueReference
+        vr_in = (reference * len(inputs))(*[self._vr[n] for n in inputs])
+        vr_out = (reference * len(outputs))(*[self._vr[n] for n in outputs])
+        n_in, n_out = ctypes.c_size_t(len(inputs)), ctypes.c_size_t(len(outputs))
         self.inputs = np.zeros(len(inputs))
         """Input buffer, shape (n_inputs,): write into it and call step(t, h) to skip a copy."""
         self._out = np.zeros(len(outputs))
-        self._in_ptr = self.inputs.ctypes.data_as(ctypes.POINTER(fmi2Real))
-        self._out_ptr = self._out.ctypes.data_as(ctypes.POINTER(fmi2Real))
+        in_ptr = self.inputs.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+        out_ptr = self._out.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+        counts_in, counts_out = ((), ()) if version == 2 else ((n_in,), (n_out,))
+        self._set = functools.partial(set_real, component, vr_in, n_in, in_ptr, *counts_in)
+        self._get = functools.partial(get_real, component, vr_out, n_out, out_ptr, *counts_out)
+        set_inputs, get_outputs, out, inputs = self._set, self._get, self._out, self.inputs
+        set_name, get_name, step_name = names
+        if version == 2:
+            do_step.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int]
+            self._do_step = functools.partial(do_step, component)  # (t, h, 1): bench/
+
+            def step(t: float, h: float, values: np.ndarray | None = None) -> np.ndarray:
+                if values is not None:
+                    inputs[:] = values
+                if set_inputs() > 1:
+                    raise RuntimeError(f"{set_name} failed at t = {t}")
+                if do_step(component, t, h, 1) > 1:
+                    raise RuntimeError(f"{step_name} failed at t = {t}")
+                if get_outputs() > 1:
+                    raise RuntimeError(f"{get_name} failed")
+                return out
+        else:
+            # No argtypes: ctypes then passes the pre-built objects as they are (the doubles
+            # as c_double made per call), half the cost of checking pointer argtypes.
+            double, no_set_prior = ctypes.c_double, ctypes.c_bool(True)
+            terminate = ctypes.c_bool(False)
+            event, stop = ctypes.byref(ctypes.c_bool(False)), ctypes.byref(terminate)
+            early, last = ctypes.byref(ctypes.c_bool(False)), ctypes.byref(ctypes.c_double(0.0))
+            model = self.description.modelName
+
+            def step(t: float, h: float, values: np.ndarray | None = None) -> np.ndarray:
+                if values is not None:
+                    inputs[:] = values
+                if set_inputs() > 1:
+                    raise RuntimeError(f"{set_name} failed at t = {t}")
+                if do_step(component, double(t), double(h), no_set_prior, event, stop, early,
+                           last) > 1:
+                    raise RuntimeError(f"{step_name} failed at t = {t}")
+                if terminate.value:
+                    raise RuntimeError(f"{model} asked to terminate the simulation at t = {t}")
+                if get_outputs() > 1:
+                    raise RuntimeError(f"{get_name} failed")
+                return out
+
+        self.step = step
+        """step(t, h, values=None): set the inputs to `values` (or use `self.inputs` as it is),
+        step from t (s) by h (s), return the outputs (the internal buffer)."""
 
     def _initialize(self, variables: dict, start_values: Mapping[str, float]) -> None:
         self.slave.instantiate()
-        self.slave.setupExperiment(startTime=0.0)
+        if self.fmi_version == 2:
+            self.slave.setupExperiment(startTime=0.0)
         for name, value in _typed_start_values(self.description, start_values).items():
-            vr = [variables[name].valueReference]
-            setter = {float: self.slave.setReal, int: self.slave.setInteger,
-                      bool: self.slave.setBoolean}[type(value)]
-            setter(vr, [value])
-        self.slave.enterInitializationMode()
+            # setReal / setInteger / setBoolean (FMI 2.0), setFloat64 / setInt32 / ... (3.0)
+            getattr(self.slave, f"set{variables[name].type}")([variables[name].valueReference],
+                                                              [value])
+        if self.fmi_version == 2:
+            self.slave.enterInitializationMode()
+        else:
+            self.slave.enterInitializationMode(startTime=0.0)
         self.slave.exitInitializationMode()
 
     def outputs(self) -> np.ndarray:
         """Current outputs, shape (n_outputs,) (internal buffer)."""
-        if self._get_real(self._component, self._vr_out, self._n_out, self._out_ptr) > 1:
-            raise RuntimeError("fmi2GetReal failed")
+        if self._get() > 1:
+            raise RuntimeError(f"{self._names[1]} failed")
         return self._out
 
-    def step(self, t: float, h: float, values: np.ndarray | None = None) -> np.ndarray:
-        """Set the inputs to `values` (or use `self.inputs` as it is), step from t (s) by h (s),
-        return the outputs."""
-        if values is not None:
-            self.inputs[:] = values
-        if self._set_real(self._component, self._vr_in, self._n_in, self._in_ptr) > 1:
-            raise RuntimeError(f"fmi2SetReal failed at t = {t}")
-        if self._do_step(self._component, t, h, 1) > 1:
-            raise RuntimeError(f"fmi2DoStep failed at t = {t}")
-        return self.outputs()
+    def read(self, names: Sequence[str]) -> np.ndarray:
+        """Current values (n,) of any Real (Float64) variables, by name (fmpy's checked call)."""
+        references = [self._vr[n] for n in names]
+        getter = self.slave.getReal if self.fmi_version == 2 else self.slave.getFloat64
+        return np.array(getter(references))
 
     def close(self) -> None:
         """Terminate and free the instance, unload the binary, remove the unzip folder."""

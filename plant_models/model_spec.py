@@ -1,12 +1,13 @@
 """Which FMU plays which part of the simulated excavator, with its parameters and port map.
 
-A port map says which FMU variable plays each role the excavator needs, so any FMI 2.0
+A port map says which FMU variable plays each role the excavator needs, so any FMI 2.0 or 3.0
 co-simulation FMU with equivalent ports can replace one of ours. Roles:
 
 - cylinder (boom, stick, bucket): inputs `u` (spool command, -1..1, +1 extends), `F_ext` (N,
   load along the rod, positive resists extension), `mass_load` (kg, optional: the arm's inertia
   reflected onto the rod, which the FMU integrates with its piston); outputs `x` (stroke, m),
-  `v` (m/s), `p_A`, `p_B` (Pa; optional: an FMU without chambers has none), `F` (N).
+  `v` (m/s), `p_A`, `p_B` (Pa; optional: an FMU without chambers has none), `F` (N; derivable,
+  see DERIVABLE_OUTPUTS).
 - pile: inputs `tip_y`, `tip_z` (m), `bucket_angle` (rad, plant_models.geometry.pile_bucket_angle),
   `dump` (>0.5 empties the bucket); outputs `bucket_mass` (kg), `F_y`, `F_z` (N),
   `removed_volume` (m^3), `dumped_mass`, `pile_mass` (kg), `surface_z_at_tip` (m).
@@ -33,6 +34,25 @@ PILE_OUTPUTS: tuple[str, ...] = (
 OPTIONAL_PORTS: Mapping[str, tuple[str, ...]] = MappingProxyType({
     "cylinder": ("p_A", "p_B", "mass_load"), "pile": (),
 })
+# Outputs the master computes when the FMU lacks them, from other outputs and parameters of the
+# role (orchestrator.plants.derived). The rule for a cylinder's force:
+#   F = p_A * A_A - p_B * A_B   (N; chamber pressures p_A, p_B in Pa; piston areas in m^2: A_A
+#                                the cap side's, A_B the rod side's annulus)
+# It applies when the FMU has no variable for F and the port map names none, the FMU has both
+# p_A and p_B, and each area is known: from the role's `piston_areas` table (m^2), else from the
+# FMU's parameter or calculated parameter that the port map names for it (default: a variable
+# named A_A / A_B, as our HydraulicCylinder declares them; its declared unit or the port's scale
+# converts it to m^2; read from the instance after initialization). An FMU with neither F nor
+# what derives it cannot fill the role.
+# output -> ((term output, its parameter, sign), ...): output = sum(sign * term * parameter).
+DERIVABLE_OUTPUTS: Mapping[str, Mapping[str, tuple[tuple[str, str, float], ...]]] = \
+    MappingProxyType({"cylinder": MappingProxyType({"F": (("p_A", "A_A", 1.0),
+                                                          ("p_B", "A_B", -1.0))}),
+                      "pile": MappingProxyType({})})
+# The parameters of those rules, mappable in a port map like the parameter roles (read, not set).
+DERIVATION_PARAMETERS: Mapping[str, tuple[str, ...]] = MappingProxyType({
+    "cylinder": ("A_A", "A_B"), "pile": (),
+})
 ROLES: Mapping[str, tuple[str, ...]] = MappingProxyType({
     "cylinder": CYLINDER_INPUTS + CYLINDER_OUTPUTS,
     "pile": PILE_INPUTS + PILE_OUTPUTS,
@@ -44,7 +64,7 @@ class FmuSpec:
     """One FMU of the plant.
 
     fmu: the name of one of our models ("HydraulicCylinder", "Pile"; built on demand) or a path
-        to any FMI 2.0 co-simulation .fmu.
+        to any FMI 2.0 or 3.0 co-simulation .fmu.
     parameters: FMU variable name -> start value (SI units, as the FMU declares them).
     ports: role -> FMU variable name; a role left out maps to the variable of the same name.
     port_maps: role -> PortMap with an explicit si = scale * fmu_value + offset (else the FMU's
@@ -52,6 +72,8 @@ class FmuSpec:
     linear_model: a cylinder role's linear model for its servo (plant_models.linear_cylinder);
         None: the simulated excavator reads our HydraulicCylinder's parameters, else identifies
         it from the FMU (orchestrator.plants.identify).
+    piston_areas: a cylinder role's piston areas {"A_A", "A_B"} (m^2) for a derived force
+        (DERIVABLE_OUTPUTS); an area left out is read from the FMU's parameter, if it has one.
     """
 
     fmu: str
@@ -59,10 +81,12 @@ class FmuSpec:
     ports: Mapping[str, str] = field(default_factory=dict)
     linear_model: LinearCylinderModel | None = None
     port_maps: Mapping[str, PortMap] = field(default_factory=dict)
+    piston_areas: Mapping[str, float] = field(default_factory=dict)
 
     @classmethod
     def from_table(cls, fmu: str, parameters: Mapping, ports: Mapping,
-                   linear_model: LinearCylinderModel | None = None) -> FmuSpec:
+                   linear_model: LinearCylinderModel | None = None,
+                   piston_areas: Mapping[str, float] | None = None) -> FmuSpec:
         """From a scenario's FMU table, whose port entries are a variable name or a table
         {variable, scale, offset}."""
         names, maps = {}, {}
@@ -73,7 +97,8 @@ class FmuSpec:
                 names[role] = maps[role].variable
             else:
                 names[role] = entry
-        return cls(fmu, dict(parameters), names, linear_model, maps)
+        return cls(fmu, dict(parameters), names, linear_model, maps,
+                   {k: float(v) for k, v in (piston_areas or {}).items()})
 
     def variable(self, role: str) -> str:
         """The FMU variable that plays `role`."""

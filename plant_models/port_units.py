@@ -17,7 +17,8 @@ from dataclasses import dataclass
 # SI base-unit exponents (kg, m, s, rad), factor and offset of the units a port may carry.
 _DIMENSIONS = {
     "1": (0, 0, 0, 0), "m": (0, 1, 0, 0), "m/s": (0, 1, -1, 0), "N": (1, 1, -2, 0),
-    "Pa": (1, -1, -2, 0), "kg": (1, 0, 0, 0), "m3": (0, 3, 0, 0), "rad": (0, 0, 0, 1),
+    "Pa": (1, -1, -2, 0), "kg": (1, 0, 0, 0), "m2": (0, 2, 0, 0), "m3": (0, 3, 0, 0),
+    "rad": (0, 0, 0, 1),
 }
 KNOWN_UNITS: Mapping[str, tuple[tuple[int, int, int, int], float, float]] = {
     "": (_DIMENSIONS["1"], 1.0, 0.0), "1": (_DIMENSIONS["1"], 1.0, 0.0),
@@ -29,14 +30,16 @@ KNOWN_UNITS: Mapping[str, tuple[tuple[int, int, int, int], float, float]] = {
     "MPa": (_DIMENSIONS["Pa"], 1e6, 0.0), "bar": (_DIMENSIONS["Pa"], 1e5, 0.0),
     "kg": (_DIMENSIONS["kg"], 1.0, 0.0), "g": (_DIMENSIONS["kg"], 1e-3, 0.0),
     "t": (_DIMENSIONS["kg"], 1e3, 0.0),
+    "m2": (_DIMENSIONS["m2"], 1.0, 0.0), "cm2": (_DIMENSIONS["m2"], 1e-4, 0.0),
+    "mm2": (_DIMENSIONS["m2"], 1e-6, 0.0),
     "m3": (_DIMENSIONS["m3"], 1.0, 0.0), "L": (_DIMENSIONS["m3"], 1e-3, 0.0),
     "rad": (_DIMENSIONS["rad"], 1.0, 0.0), "deg": (_DIMENSIONS["rad"], math.pi / 180.0, 0.0),
 }
 # The unit of every role (plant_models.model_spec roles and parameter roles).
 ROLE_UNITS: Mapping[str, str] = {
     "u": "1", "F_ext": "N", "x": "m", "v": "m/s", "p_A": "Pa", "p_B": "Pa", "F": "N", "x0": "m",
-    "mass_load": "kg", "tip_y": "m", "tip_z": "m", "bucket_angle": "rad", "dump": "1",
-    "bucket_mass": "kg",
+    "mass_load": "kg", "A_A": "m2", "A_B": "m2", "tip_y": "m", "tip_z": "m",
+    "bucket_angle": "rad", "dump": "1", "bucket_mass": "kg",
     "F_y": "N", "F_z": "N", "removed_volume": "m3", "dumped_mass": "kg", "pile_mass": "kg",
     "surface_z_at_tip": "m",
 }

@@ -1,5 +1,6 @@
 """`excosim fmus info` / `excosim fmus validate` (orchestrator/cli/fmus_info.py): our FMUs, an
-FMI 3.0 build, a file that is not an FMU and a model-exchange-only FMU."""
+FMI 3.0 build (which fills its role like the FMI 2.0 one), a file that is not an FMU and a
+model-exchange-only FMU."""
 
 import json
 import re
@@ -37,7 +38,7 @@ def test_info_of_our_models_reports_variables_and_roles():
     assert report["roles"]["cylinder"]["parts"] == ["boom", "stick", "bucket"]
     for pile in ("Pile", "PileZelenin"):
         assert roles(pile)["roles"]["pile"] == {"parts": ["pile"], "fills": True, "missing": [],
-                                                "absent": [], "problems": []}
+                                                "absent": [], "derived": [], "problems": []}
 
 
 def test_ideal_actuator_fills_the_cylinder_role_without_the_optional_ports():
@@ -67,14 +68,14 @@ def test_validate_with_the_wrong_role_lists_its_problems():
         result.stdout.splitlines()
 
 
-def test_fmi3_build_is_described_but_fills_no_role_of_the_fmi2_master():
+def test_fmi3_build_is_described_and_fills_its_role():
     report = roles("HydraulicCylinder", "--fmi3")
     assert report["fmi_version"] == "3.0" and report["kinds"] == ["co-simulation"]
     assert {v["type"] for v in report["variables"]} == {"Float64", "Int32"}
     cylinder = report["roles"]["cylinder"]
-    assert cylinder["missing"] == [] and not cylinder["fills"]
-    assert "FMI 2.0 co-simulation" in cylinder["problems"][0]
-    assert validate(fmus.build("HydraulicCylinder", fmi_version=3)) == cylinder["problems"]
+    assert cylinder["missing"] == [] and cylinder["fills"] and cylinder["problems"] == []
+    assert roles("Pile", "--fmi3")["roles"]["pile"]["fills"]
+    assert validate(fmus.build("HydraulicCylinder", fmi_version=3), "cylinder") == []
 
 
 def test_a_file_that_is_not_an_fmu_exits_2(tmp_path):

@@ -86,16 +86,19 @@ def build_plant(scenario: Scenario) -> Plant:
 
 def open_run_log(scenario: Scenario, log_path: str | Path, overwrite: bool = False):
     """The MCAP run log of a campaign (orchestrator.runlog.writer.RunLog)."""
-    from orchestrator.plants.master import fmu_path
+    from orchestrator.plants.master import derivation_notes, fmu_path
     from orchestrator.runlog.writer import RunLog
+    from orchestrator.scenario.fmu_paths import ROLE_OF
 
-    fmus = {role: fmu_path(spec, role) for role, spec in scenario.fmu_specs().items()}
+    specs = scenario.fmu_specs()
+    fmus = {role: fmu_path(spec, role) for role, spec in specs.items()}
+    derived = {role: derivation_notes(role, ROLE_OF[role], spec) for role, spec in specs.items()}
     return RunLog(Path(log_path), scenario=scenario.to_dict(),
                   scenario_text=scenario_source_text(scenario), scenario_name=scenario.name,
                   fmus=fmus, plant_kind=scenario.plant.kind,
                   target_mass_kg=scenario.target_mass_kg, geometry=scenario.geometry(),
                   sample_rate_hz=scenario.log.sample_rate_hz, overrides=scenario.overrides,
-                  overwrite=overwrite)
+                  overwrite=overwrite, derived=derived)
 
 
 def scenario_source_text(scenario: Scenario) -> str:

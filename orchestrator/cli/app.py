@@ -34,7 +34,7 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     context_settings=HELP_OPTIONS,
 )
-fmus_app = typer.Typer(cls=Group, help="Build and try the FMUs (FMI 2.0 co-simulation).",
+fmus_app = typer.Typer(cls=Group, help="Build and try the FMUs (FMI 2.0 and 3.0 co-simulation).",
                        no_args_is_help=True, context_settings=HELP_OPTIONS)
 app.add_typer(fmus_app, name="fmus")
 log_app = typer.Typer(cls=Group, help="Work on run logs as files.", no_args_is_help=True,

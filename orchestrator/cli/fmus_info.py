@@ -4,8 +4,9 @@ An FMU is named by a path to a .fmu file or by one of our model names (built on 
 unless fmi3 is asked for). The role check uses the default port map: a role's port is the FMU
 variable of the same name (plant_models.model_spec), a Real of the right causality; the
 parameter roles (orchestrator.plants.master.PARAMETER_ROLES, e.g. the cylinder's x0) must be
-settable parameters. The master loads FMI 2.0 co-simulation FMUs only, so an FMI 3.0 or
-model-exchange-only FMU is reported as not filling a role even when its variables would.
+settable parameters. The master loads FMI 2.0 and 3.0 co-simulation FMUs, so a
+model-exchange-only FMU (or one of another FMI version) is reported as not filling a role even
+when its variables would.
 """
 
 from __future__ import annotations
@@ -16,7 +17,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from plant_models.model_spec import CYLINDER_INPUTS, OPTIONAL_PORTS, PILE_INPUTS, ROLES
+from plant_models.model_spec import (
+    CYLINDER_INPUTS,
+    DERIVABLE_OUTPUTS,
+    OPTIONAL_PORTS,
+    PILE_INPUTS,
+    ROLES,
+    FmuSpec,
+)
 
 __all__ = ["NotAnFmu", "RoleCheck", "FmuInfo", "resolve", "inspect_fmu", "validate",
            "info_command", "validate_command"]
@@ -40,6 +48,7 @@ class RoleCheck:
     parts: tuple[str, ...]
     missing: list[str] = field(default_factory=list)  # role variables the FMU lacks
     absent: list[str] = field(default_factory=list)  # optional role variables it lacks
+    derived: list[str] = field(default_factory=list)  # outputs the master derives for it
     problems: list[str] = field(default_factory=list)  # every reason it cannot fill the role
 
     @property
@@ -64,6 +73,7 @@ class FmuInfo:
                 "variables": self.variables,
                 "roles": {r.role: {"parts": list(r.parts), "fills": r.fills,
                                    "missing": r.missing, "absent": r.absent,
+                                   "derived": r.derived,
                                    "problems": r.problems}
                           for r in self.roles}}
 
@@ -108,17 +118,27 @@ def _start(variable) -> Any:
 
 
 def _role_check(role: str, description, parameter_roles: tuple[str, ...]) -> RoleCheck:
+    from orchestrator.plants.derived import derive_outputs
+    from orchestrator.plants.master import not_co_simulation
+
     check = RoleCheck(role, ROLE_PARTS[role])
     variables = {v.name: v for v in description.modelVariables}
-    if description.fmiVersion != "2.0" or description.coSimulation is None:
-        kind = "co-simulation" if description.coSimulation else "model exchange"
-        check.problems.append(f"{role}: the master needs an FMI 2.0 co-simulation FMU, this is "
-                              f"FMI {description.fmiVersion} {kind}")
+    refusal = not_co_simulation(description)
+    if refusal:
+        check.problems.append(f"{role}: {refusal}")
     for port in ROLES[role]:
         wanted = "input" if port in _ROLE_INPUTS[role] else "output"
         variable = variables.get(port)
         if variable is None and port in OPTIONAL_PORTS[role]:
             check.absent.append(port)
+        elif variable is None and port in DERIVABLE_OUTPUTS[role]:
+            try:  # from the other outputs and the FMU's own parameters (default names)
+                present = {p: p for p in ROLES[role] if p in variables}
+                check.derived += list(derive_outputs(role, role, FmuSpec(""), description,
+                                                     present))
+            except ValueError as error:
+                check.missing.append(port)
+                check.problems.append(str(error))
         elif variable is None:
             check.missing.append(port)
             check.problems.append(f"{role}: no variable {port!r} (needs a Real {wanted})")
@@ -188,6 +208,8 @@ def _text(info: FmuInfo) -> str:
         detail = f"; missing: {', '.join(check.missing)}" if check.missing else ""
         if check.absent:
             detail += f"; without the optional {', '.join(check.absent)}"
+        if check.derived:
+            detail += f"; the master derives {', '.join(check.derived)}"
         lines.append(f"    {check.role}{parts}: {state}{detail}")
         if not check.fills and not check.missing:
             lines += [f"      {p}" for p in check.problems]

@@ -84,8 +84,10 @@ def role_lines(data: dict[str, Any]) -> list[str]:
     for role, table in data["roles"].items():
         fmu = Path(str(table.get("fmu", ""))).name or table.get("file", "")
         digest = str(table.get("sha256", ""))[:12]
+        derived = table.get("derived") or {}
         lines.append(f"  {role}: {fmu} (sha256 {digest}), "
-                     f"{count(len(table.get('parameters', {})), 'parameter')} set")
+                     f"{count(len(table.get('parameters', {})), 'parameter')} set"
+                     + "".join(f"; {out} derived by the master" for out in derived))
     if data["overrides"]:
         lines.append("  --set " + " --set ".join(data["overrides"]))
     return lines

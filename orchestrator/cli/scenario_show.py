@@ -26,15 +26,18 @@ def flat_lines(data: Any, prefix: str = "") -> list[str]:
 
 
 def plant_roles(scenario: Scenario) -> dict[str, dict[str, Any]]:
-    """role -> {"fmu", "file", "sha256", "parameters"} of the resolved scenario."""
-    from orchestrator.plants.master import fmu_path
+    """role -> {"fmu", "file", "sha256", "parameters", "derived"} of the resolved scenario
+    ("derived": output -> how the master computes it for an FMU that lacks it)."""
+    from orchestrator.plants.master import derivation_notes, fmu_path
+    from orchestrator.scenario.fmu_paths import ROLE_OF
 
     out = {}
     for role, spec in scenario.fmu_specs().items():
         path = fmu_path(spec, role)
         out[role] = {"fmu": spec.fmu, "file": str(path),
                      "sha256": hashlib.sha256(Path(path).read_bytes()).hexdigest(),
-                     "parameters": dict(spec.parameters)}
+                     "parameters": dict(spec.parameters),
+                     "derived": derivation_notes(role, ROLE_OF[role], spec)}
     return out
 
 
@@ -114,6 +117,8 @@ def show(path: Path, overrides: list[str], as_json: bool) -> tuple[str, int] | N
     for role, table in roles.items():
         out.print(f"{role}: {table['file']} (sha256 {table['sha256'][:12]})", markup=False,
                   soft_wrap=True)
+        for note in table["derived"].values():
+            out.print(f"  derived by the master: {note}", markup=False, soft_wrap=True)
     if servos:
         out.print("# the servo of each cylinder (design stroke; python-control margins)",
                   markup=False)

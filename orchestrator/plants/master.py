@@ -1,15 +1,17 @@
-"""Co-simulation master: FMI 2.0 co-simulation FMUs, each playing a role through its port map.
+"""Co-simulation master: FMI 2.0 and 3.0 co-simulation FMUs, each playing a role through its port
+map.
 
 A component is one FMU instance with a role ("cylinder", "pile"; plant_models.model_spec) and an
 FmuSpec whose port map names the FMU variable of every role port, and of the parameter roles in
 PARAMETER_ROLES (a cylinder's initial stroke `x0`, which the simulated excavator sets). The
 master checks every component before anything is instantiated (each port an FMU variable of
-type Real with the right causality, each parameter a variable that can be set before
-initialization), extracts each FMU file once, instantiates and initialises every component,
-and frees all of them in `close()`, on error too.
+type Real, FMI 3.0 a scalar Float64, with the right causality, each parameter a variable that
+can be set before initialization), extracts each FMU file once, instantiates and initialises
+every component, and frees all of them in `close()`, on error too.
 
 Value exchange per step goes through fmus.runs.FastSlave: pre-allocated numpy buffers and the
-FMU's own fmi2SetReal / fmi2DoStep / fmi2GetReal entry points with pre-converted arguments.
+FMU's own fmi2SetReal / fmi2DoStep / fmi2GetReal (FMI 3.0: fmi3SetFloat64 / fmi3DoStep /
+fmi3GetFloat64) entry points with pre-converted arguments.
 A component's `inputs` buffer holds the role's inputs in role order (`input_index`), `outputs`
 the role's outputs in role order (`output_index`); the caller writes inputs, calls
 `step(t, h)` and reads outputs. The coupling itself (who feeds whom, in which order) belongs
@@ -25,9 +27,12 @@ from pathlib import Path
 
 import numpy as np
 
-from fmus.runs import FastSlave
+from fmus.runs import REAL_TYPES, FastSlave, fmi_major
+from orchestrator.plants.derived import DerivedOutput, derive_outputs
 from plant_models.model_spec import (
     CYLINDER_INPUTS,
+    DERIVABLE_OUTPUTS,
+    DERIVATION_PARAMETERS,
     OPTIONAL_PORTS,
     PILE_INPUTS,
     ROLES,
@@ -57,20 +62,35 @@ def fmu_path(spec: FmuSpec, component: str) -> Path:
     return path
 
 
+def not_co_simulation(description) -> str | None:
+    """Why the master cannot run the FMU of `description` (one line), None when it can: an FMI
+    2.0 or 3.0 FMU with co-simulation (model exchange needs a solver the master does not have)."""
+    version, name = description.fmiVersion, description.modelName
+    if fmi_major(description) is None:
+        return f"{name} is an FMI {version} FMU; the master runs FMI 2.0 and 3.0 co-simulation"
+    if description.coSimulation is None:
+        return (f"{name} is an FMI {version} FMU for model exchange only; the master runs "
+                "co-simulation FMUs (export it with co-simulation, i.e. its own solver)")
+    return None
+
+
 def check_component(component: str, role: str, spec: FmuSpec, description) -> dict[str, str]:
     """Check `spec`'s port map and parameters against an FMU's model description.
 
     Returns {port role: FMU variable name} for the role's ports and parameter roles; an
     optional port (OPTIONAL_PORTS) that the FMU lacks and the port map does not name is left
-    out. Raises ValueError naming the component, the role and the variable.
+    out, and so is a derivable output (DERIVABLE_OUTPUTS) that the master can derive
+    (orchestrator.plants.derived). Raises ValueError naming the component, the role and the
+    variable.
     """
     if role not in ROLES:
         raise ValueError(f"{component}: unknown role {role!r}; roles: {', '.join(ROLES)}")
-    if description.fmiVersion != "2.0" or description.coSimulation is None:
-        raise ValueError(f"{component}: {description.modelName} is not an FMI 2.0 "
-                         "co-simulation FMU")
+    refusal = not_co_simulation(description)
+    if refusal:
+        raise ValueError(f"{component}: {refusal}")
+    real = "Real" if fmi_major(description) == 2 else "Float64"
     variables = {v.name: v for v in description.modelVariables}
-    known = ROLES[role] + PARAMETER_ROLES[role]
+    known = ROLES[role] + PARAMETER_ROLES[role] + DERIVATION_PARAMETERS[role]
     unknown = sorted(set(spec.ports) - set(known))
     if unknown:
         raise ValueError(f"{component}: port map names unknown role {unknown[0]!r}; "
@@ -80,15 +100,18 @@ def check_component(component: str, role: str, spec: FmuSpec, description) -> di
         name = spec.variable(port)
         wanted = "input" if port in _ROLE_INPUTS[role] else "output"
         variable = variables.get(name)
-        if variable is None and port in OPTIONAL_PORTS[role] and port not in spec.ports:
-            continue
+        if variable is None and port not in spec.ports and (
+                port in OPTIONAL_PORTS[role] or port in DERIVABLE_OUTPUTS[role]):
+            continue  # a derivable output is checked below, once the ports are known
         if variable is None:
             raise ValueError(f"{component}: role {port!r} maps to variable {name!r}, which "
                              f"{description.modelName} does not have")
-        if variable.causality != wanted or variable.type != "Real":
-            raise ValueError(f"{component}: role {port!r} needs a Real {wanted}, but variable "
-                             f"{name!r} of {description.modelName} is a {variable.type} "
-                             f"{variable.causality}")
+        if variable.causality != wanted or variable.type not in REAL_TYPES \
+                or getattr(variable, "dimensions", None):
+            shape = "array " if getattr(variable, "dimensions", None) else ""
+            raise ValueError(f"{component}: role {port!r} needs a {real} {wanted}, but variable "
+                             f"{name!r} of {description.modelName} is a {shape}"
+                             f"{variable.type} {variable.causality}")
         ports[port] = name
     for port in PARAMETER_ROLES[role]:
         ports[port] = spec.variable(port)
@@ -96,7 +119,19 @@ def check_component(component: str, role: str, spec: FmuSpec, description) -> di
     for name in spec.parameters:
         _check_settable(component, description, variables, name, None)
     port_conversions(component, spec, description, ports)
+    derive_outputs(component, role, spec, description, ports)
     return ports
+
+
+def derivation_notes(component: str, role: str, spec: FmuSpec) -> dict[str, str]:
+    """output role -> how the master derives it for `spec` in `role` (DerivedOutput.note), {}
+    when the FMU has every output; for the run log. ValueError as check_component."""
+    from fmpy import read_model_description
+
+    description = read_model_description(str(fmu_path(spec, component)))
+    ports = check_component(component, role, spec, description)
+    return {output: derived.note() for output, derived in
+            derive_outputs(component, role, spec, description, ports).items()}
 
 
 def port_conversions(component: str, spec: FmuSpec, description,
@@ -158,7 +193,8 @@ class Component:
     def __init__(self, name: str, role: str, spec: FmuSpec, path: Path, description,
                  ports: Mapping[str, str], unzip_dir: str,
                  start_values: Mapping[str, float],
-                 conversions: Mapping[str, PortMap] | None = None) -> None:
+                 conversions: Mapping[str, PortMap] | None = None,
+                 derived: Mapping[str, DerivedOutput] | None = None) -> None:
         self.name, self.role, self.spec, self.path = name, role, spec, path
         self.description = description
         input_roles = _ROLE_INPUTS[role]
@@ -167,7 +203,10 @@ class Component:
         self.output_index = {port: i for i, port in enumerate(output_roles)}
         present = [p for p in output_roles if p in ports]
         present_inputs = [p for p in input_roles if p in ports]
-        self.missing_outputs: tuple[str, ...] = tuple(p for p in output_roles if p not in ports)
+        self.derived: dict[str, DerivedOutput] = dict(derived or {})
+        """Output roles the FMU lacks that the master computes (orchestrator.plants.derived)."""
+        self.missing_outputs: tuple[str, ...] = tuple(
+            p for p in output_roles if p not in ports and p not in self.derived)
         """Optional output roles the FMU does not have (their `outputs` slots hold NaN)."""
         self.missing_inputs: tuple[str, ...] = tuple(p for p in input_roles if p not in ports)
         """Optional input roles the FMU does not have (what is written to their slots is unused)."""
@@ -180,11 +219,18 @@ class Component:
         except Exception as error:  # fmpy raises plain Exceptions for FMI status errors
             raise ValueError(f"{name}: {description.modelName} did not initialise with its "
                              f"start values ({error})") from None
+        try:  # the FMU's piston areas, as initialised (a calculated parameter has no start)
+            terms = {o: d.coefficients(self._slave.read, name) for o, d in self.derived.items()}
+        except Exception:
+            self._slave.close()
+            raise
+        self.derived_notes = {o: d.note(terms[o]) for o, d in self.derived.items()}
+        """output role -> how the master derives it, with the values it uses."""
         self.inputs: np.ndarray = self._slave.inputs
         """(n_inputs,) buffer, role input order: write here, then step()."""
         self.conversions = dict(conversions or {})
         """role -> PortMap of the ports converted between the FMU's units and SI."""
-        if not self.missing_outputs and not self.missing_inputs and not self.conversions:
+        if not (self.missing_outputs or self.missing_inputs or self.conversions or self.derived):
             self.outputs: np.ndarray = self._slave.outputs()
             """(n_outputs,) buffer, role output order, refreshed by every step()."""
             self.step = self._slave.step
@@ -199,22 +245,33 @@ class Component:
             out_scale, out_offset = _affine(tuple(present), self.conversions)
             slave_step, slave_in = self._slave.step, self._slave.inputs
             slave_out, outputs, inputs = self._slave.outputs(), self.outputs, self.inputs
+            # output slot -> ((term slot, coefficient), ...): each derived output, in SI.
+            rules = [(output_roles.index(o), tuple((output_roles.index(t), c) for t, c in
+                                                   terms[o])) for o in self.derived]
+
+            def refresh() -> None:
+                outputs[slots] = out_scale * slave_out + out_offset
+                for slot, sums in rules:
+                    value = 0.0
+                    for term, coefficient in sums:
+                        value += outputs[term] * coefficient
+                    outputs[slot] = value
+
             inputs[in_slots] = in_scale * slave_in + in_offset  # the start values, in SI
-            outputs[slots] = out_scale * slave_out + out_offset
+            refresh()
 
             def step(t_s: float, h_s: float) -> None:
                 slave_in[:] = (inputs[in_slots] - in_offset) / in_scale
                 slave_step(t_s, h_s)
-                outputs[slots] = out_scale * slave_out + out_offset
+                refresh()
 
             self.step = step
-        self._vr = {v.name: v.valueReference for v in description.modelVariables}
 
     def read(self, names: Sequence[str]) -> np.ndarray:
         """Current values (n,) of any Real variables of the FMU, by FMU variable name."""
         if self._slave.slave is None:
             raise RuntimeError(f"{self.name}: the FMU instance is closed")
-        return np.array(self._slave.slave.getReal([self._vr[n] for n in names]))
+        return self._slave.read(names)
 
     def close(self) -> None:
         """Terminate and free the instance; safe twice. Stepping afterwards is a RuntimeError
@@ -253,6 +310,7 @@ class Master:
                 raise ValueError(f"{name}: cannot read {path.name}: {error}") from None
             ports = check_component(name, role, spec, description)
             conversions = port_conversions(name, spec, description, ports)
+            derived = derive_outputs(name, role, spec, description, ports)
             values = dict(spec.parameters)
             for key, value in start_values.get(name, {}).items():
                 if key not in _ROLE_INPUTS[role] + PARAMETER_ROLES[role]:
@@ -263,14 +321,17 @@ class Master:
                 # Start values come in the role's SI units: into the FMU's.
                 values[ports[key]] = conversions[key].from_si(value) if key in conversions \
                     else value
-            checked.append((name, role, spec, path, description, ports, values, conversions))
+            checked.append((name, role, spec, path, description, ports, values, conversions,
+                            derived))
         try:
-            for name, role, spec, path, description, ports, values, conversions in checked:
+            for name, role, spec, path, description, ports, values, conversions, derived \
+                    in checked:
                 if path not in self._unzip_dirs:
                     self._unzip_dirs[path] = extract(
                         str(path), unzipdir=tempfile.mkdtemp(prefix="excosim-fmu-"))
                 self.components[name] = Component(name, role, spec, path, description, ports,
-                                                  self._unzip_dirs[path], values, conversions)
+                                                  self._unzip_dirs[path], values, conversions,
+                                                  derived)
         except BaseException:
             self.close()
             raise

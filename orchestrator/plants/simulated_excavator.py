@@ -34,6 +34,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from fmus.runs import value_kind
 from orchestrator.plants.arm_coupling import ArmCoupling
 from orchestrator.plants.arm_dynamics import ArmInertia
 from orchestrator.plants.identify import CylinderIdentification, identify_cylinder
@@ -58,7 +59,7 @@ _PROFILE = re.compile(r"^h\[(\d+)\]$")
 def _start_values(description) -> dict[str, float]:
     values = {}
     for variable in description.modelVariables:
-        if variable.start is not None and variable.type in ("Real", "Integer"):
+        if variable.start is not None and value_kind(variable.type) in ("Real", "Integer"):
             values[variable.name] = float(variable.start)
     return values
 

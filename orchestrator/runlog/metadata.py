@@ -82,10 +82,12 @@ def read_fmus(fmus: Mapping[str, str | Path]) -> dict[str, tuple[str, bytes]]:
 
 
 def plant_roles(scenario: Mapping, fmus: Mapping[str, tuple[str, bytes]],
-                hashes: Mapping[str, str]) -> dict[str, str]:
-    """role -> JSON {"fmu": as the scenario names it, "file", "sha256", "parameters", "ports"}
-    of every FMU role: which model filled each role, so that a review can tell substitutions
-    apart."""
+                hashes: Mapping[str, str],
+                derived: Mapping[str, Mapping[str, str]] | None = None) -> dict[str, str]:
+    """role -> JSON {"fmu": as the scenario names it, "file", "sha256", "parameters", "ports",
+    "derived"} of every FMU role: which model filled each role, so that a review can tell
+    substitutions apart; "derived": {output: how} of the outputs the master computed instead
+    of reading them from the FMU ({}: none)."""
     plant = scenario.get("plant", {}) if isinstance(scenario, Mapping) else {}
     out = {}
     for role, (file_name, _) in fmus.items():
@@ -94,7 +96,8 @@ def plant_roles(scenario: Mapping, fmus: Mapping[str, tuple[str, bytes]],
         out[role] = to_json({"fmu": table.get("fmu", file_name), "file": file_name,
                              "sha256": hashes[role],
                              "parameters": table.get("parameters", {}),
-                             "ports": table.get("ports", {})}, f"role {role}")
+                             "ports": table.get("ports", {}),
+                             "derived": dict((derived or {}).get(role, {}))}, f"role {role}")
     return out
 
 
@@ -102,7 +105,8 @@ def write_run_description(writer: McapChunkWriter, *, scenario_json: str, scenar
                           scenario_name: str, fmus: dict[str, tuple[str, bytes]],
                           plant_kind: str, target_mass_kg: float,
                           geometry: ExcavatorGeometry | None,
-                          overrides: list[str] | None = None) -> None:
+                          overrides: list[str] | None = None,
+                          derived: Mapping[str, Mapping[str, str]] | None = None) -> None:
     """The metadata records and attachments a run log starts with (`orchestrator.runlog.writer`)."""
     versions = package_versions()
     scenario_file, scenario_media = scenario_attachment(scenario_text)
@@ -131,7 +135,8 @@ def write_run_description(writer: McapChunkWriter, *, scenario_json: str, scenar
             to_attach.append((attachment, data))
         names[name] = attached[digest]
     writer.add_metadata("excosim.fmus", hashes)
-    writer.add_metadata("excosim.roles", plant_roles(json.loads(scenario_json), fmus, hashes))
+    writer.add_metadata("excosim.roles", plant_roles(json.loads(scenario_json), fmus, hashes,
+                                                     derived))
     writer.add_metadata("excosim.fmu_attachments", names)
     if geometry is not None:
         writer.add_metadata("excosim.geometry", {

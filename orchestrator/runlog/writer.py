@@ -84,6 +84,8 @@ class RunLog:
     fmus: name -> path of every FMU used; plant_kind: "sim" or "lab"; target_mass_kg: the
     target dug mass (kg); geometry: the arm, for the 3D channels (None: no /tf, /scene/arm).
     overrides: the `--set` items applied to the scenario file (recorded for review).
+    derived: FMU name -> {output role: how it is derived} for the outputs the master computes
+    instead of reading them from the FMU (orchestrator.plants.derived; recorded per role).
     transform_rate_hz: rate of /tf (decimated from the samples). sample_rate_hz: rate of the
     high-rate sample channels (None: every sample; see samples.decimated). fsync: also force
     each period to the disk (survives a power loss, not only a killed process; costs a disk
@@ -97,7 +99,8 @@ class RunLog:
                  target_mass_kg: float, geometry: ExcavatorGeometry | None = None,
                  transform_rate_hz: float = 25.0, sample_rate_hz: float | None = None,
                  overrides: Sequence[str] = (), fsync: bool = False,
-                 overwrite: bool = False) -> None:
+                 overwrite: bool = False,
+                 derived: Mapping[str, Mapping[str, str]] | None = None) -> None:
         if not (isinstance(target_mass_kg, int | float) and math.isfinite(target_mass_kg)):
             raise ValueError(f"target_mass_kg must be a finite number, got {target_mass_kg!r}")
         if not transform_rate_hz > 0.0:
@@ -125,6 +128,7 @@ class RunLog:
             self._writer, scenario_json=scenario_json, scenario_text=scenario_text,
             scenario_name=scenario_name, fmus=fmu_files, plant_kind=plant_kind,
             target_mass_kg=target_mass_kg, geometry=geometry, overrides=list(overrides),
+            derived=derived,
         )
         self._writer.flush(fsync)
 

@@ -1,10 +1,11 @@
 """Find the scenario's FMUs and check its parameters and port maps against their variables.
 
 Our models (`fmus.MODELS`) are named by name and built on demand; anything else is a path to an
-FMI 2.0 co-simulation .fmu, relative to the scenario's folder, stored resolved (absolute). The
-checks are the co-simulation master's own (`orchestrator.plants.master.check_component`), run before
-any FMU is instantiated, so that a mistake is reported against the scenario field it is in;
-on top, each start value must fit its variable's type (the master would convert it).
+FMI 2.0 or 3.0 co-simulation .fmu, relative to the scenario's folder, stored resolved
+(absolute). The checks are the co-simulation master's own
+(`orchestrator.plants.master.check_component`), run before any FMU is instantiated, so that a
+mistake is reported against the scenario field it is in; on top, each start value must fit its
+variable's type (the master would convert it).
 """
 
 from __future__ import annotations
@@ -15,12 +16,14 @@ import re
 from pathlib import Path
 from typing import Any
 
+from fmus.runs import value_kind
 from orchestrator.plants.master import check_component, fmu_path
 from orchestrator.scenario.errors import ScenarioError
 from plant_models.model_spec import FmuSpec
 from plant_models.port_units import si_to_declared
 
-_ROLE_OF = {"boom": "cylinder", "stick": "cylinder", "bucket": "cylinder", "pile": "pile"}
+# The role each FMU of the plant plays (plant_models.model_spec.ROLES).
+ROLE_OF = {"boom": "cylinder", "stick": "cylinder", "bucket": "cylinder", "pile": "pile"}
 _PORT_IN_MESSAGE = re.compile(r"role '([^']+)'")
 
 
@@ -36,7 +39,7 @@ def resolve_fmus(plant: dict[str, Any], source: str, base_dir: Path,
     import fmus
 
     plant = copy.deepcopy(plant)
-    for component, role in _ROLE_OF.items():
+    for component, role in ROLE_OF.items():
         table, where = plant[component], f"plant.{component}"
         if table["fmu"] not in fmus.MODELS:
             path = Path(table["fmu"]).expanduser()
@@ -46,10 +49,13 @@ def resolve_fmus(plant: dict[str, Any], source: str, base_dir: Path,
                                     f"no model of that name (models: {', '.join(fmus.MODELS)})")
             table["fmu"] = str(path.resolve())
         try:
-            spec = FmuSpec.from_table(table["fmu"], table["parameters"], table["ports"])
+            spec = FmuSpec.from_table(table["fmu"], table["parameters"], table["ports"],
+                                      piston_areas=table.get("piston_areas"))
             description = _description(fmu_path(spec, component))
             check_component(component, role, FmuSpec(spec.fmu, {}, spec.ports,
-                                                     port_maps=spec.port_maps), description)
+                                                     port_maps=spec.port_maps,
+                                                     piston_areas=spec.piston_areas),
+                            description)
         except ValueError as error:
             port = _PORT_IN_MESSAGE.search(str(error))
             field = f"{where}.ports.{port.group(1)}" if port else f"{where}.fmu"
@@ -58,12 +64,15 @@ def resolve_fmus(plant: dict[str, Any], source: str, base_dir: Path,
         if given is not None:
             table["parameters"] = _kept(table["parameters"], given[component], variables,
                                         description)
-            spec = FmuSpec.from_table(table["fmu"], table["parameters"], table["ports"])
+            spec = FmuSpec.from_table(table["fmu"], table["parameters"], table["ports"],
+                                      piston_areas=table.get("piston_areas"))
         for name, value in spec.parameters.items():
             field = f"{where}.parameters.{name}"
             try:
                 check_component(component, role, FmuSpec(spec.fmu, {name: value}, spec.ports,
-                                                         port_maps=spec.port_maps), description)
+                                                         port_maps=spec.port_maps,
+                                                         piston_areas=spec.piston_areas),
+                                description)
             except ValueError as error:
                 raise ScenarioError(source, field, _without_component(error, component)) from None
             _check_type(variables[name], description.modelName, value, source, field)
@@ -97,7 +106,7 @@ def _kept(parameters: dict[str, Any], given: set[str], variables: dict, descript
         variable = variables.get(name)
         if not _fits(variable, value):
             continue
-        if variable.type == "Real":
+        if value_kind(variable.type) == "Real":
             value = si_to_declared(float(value), variable, definitions)
         if value is not None:
             out[name] = value
@@ -109,10 +118,11 @@ def _fits(variable, value: Any) -> bool:
     if variable is None or variable.causality not in ("parameter", "input") \
             or variable.variability == "constant":
         return False
-    return _type_fits(variable.type, value)
+    return _type_fits(value_kind(variable.type), value)
 
 
-def _type_fits(kind: str, value: Any) -> bool:
+def _type_fits(kind: str | None, value: Any) -> bool:
+    """`value` fits a variable of value_kind `kind` (Real, Integer, Boolean; FMI 2.0 or 3.0)."""
     number = isinstance(value, int | float) and not isinstance(value, bool)
     return {"Real": number and math.isfinite(value),
             "Integer": isinstance(value, int) and not isinstance(value, bool),
@@ -120,6 +130,6 @@ def _type_fits(kind: str, value: Any) -> bool:
 
 
 def _check_type(variable, model: str, value: Any, source: str, field: str) -> None:
-    if not _type_fits(variable.type, value):
+    if not _type_fits(value_kind(variable.type), value):
         raise ScenarioError(source, field, f"{model}.{variable.name} is a {variable.type}, "
                             f"got {value!r}")

@@ -124,12 +124,26 @@ class PortSection(Section):
 
 class FmuSection(Section):
     """plant_models.model_spec.FmuSpec: our model's name or a .fmu path, start values, ports;
-    linear_model (cylinder roles): the servo's model of the FMU (absent: read or identified)."""
+    linear_model (cylinder roles): the servo's model of the FMU (absent: read or identified);
+    piston_areas (cylinder roles): {A_A, A_B} in m^2, for a force derived from the chamber
+    pressures of an FMU without one (model_spec.DERIVABLE_OUTPUTS)."""
 
     fmu: StrictStr
     parameters: dict[StrictStr, ParameterValue] = {}
     ports: dict[StrictStr, StrictStr | PortSection] = {}
     linear_model: LinearModelSection | None = None
+    piston_areas: dict[StrictStr, Number] = {}
+
+    @field_validator("piston_areas")
+    @classmethod
+    def _areas(cls, value: dict[str, float]) -> dict[str, float]:
+        for key, area in value.items():
+            if key not in ("A_A", "A_B"):
+                raise ValueError(f"unknown area {key!r}; give A_A (cap side) and A_B (rod "
+                                 "side), in m^2")
+            if not (math.isfinite(area) and area > 0.0):
+                raise ValueError(f"area {key} must be > 0 m^2, got {area!r}")
+        return value
 
     @field_validator("ports", mode="before")
     @classmethod
@@ -153,7 +167,7 @@ class FmuSection(Section):
             else LinearCylinderModel(**self.linear_model.model_dump())
         ports = {role: p if isinstance(p, str) else p.model_dump()
                  for role, p in self.ports.items()}
-        return FmuSpec.from_table(self.fmu, self.parameters, ports, linear)
+        return FmuSpec.from_table(self.fmu, self.parameters, ports, linear, self.piston_areas)
 
 
 class LogSection(Section):
