@@ -178,11 +178,11 @@ double profile_top_near(const Profile *p, int k)
     return top;
 }
 
-static void relax_pair(Profile *p, int i, double max_step, double *worst)
+static int relax_pair(Profile *p, int i, double max_step, double *worst)
 {
     const double step = p->h[i] - p->h[i + 1];
     const double excess = fabs(step) - max_step;
-    if (!(excess > PROFILE_RELAX_TOLERANCE)) return;
+    if (!(excess > PROFILE_RELAX_TOLERANCE)) return 0;
     /* Half the excess moves down the slope: the pair ends exactly at max_step. */
     const double moved = 0.5 * excess;
     if (step > 0.0) {
@@ -193,18 +193,52 @@ static void relax_pair(Profile *p, int i, double max_step, double *worst)
         p->h[i + 1] -= moved;
     }
     if (excess > *worst) *worst = excess;
+    return 1;
+}
+
+/*
+ * Sweeps alternate forward and backward over the pairs (Gauss-Seidel). A pair changes only if
+ * one of its cells changed since it was last visited, so each pass visits only the pairs next to
+ * the cells the previous pass changed, extending as it goes (a pair that moves material makes
+ * the next pair in the pass's direction due): the same changes in the same order as full
+ * sweeps, so the same result bit for bit, without visiting the settled rest of the profile.
+ */
+static int free_pair(int i, int held)
+{
+    return held < 0 || (i != held && i + 1 != held);
 }
 
 int profile_relax(Profile *p, double max_step, int held, int max_sweeps)
 {
     if (p->active >= 0 && p->active != held) profile_release(p);
+    int lo = 0, hi = N_h - 1; /* cells changed since their pairs were visited */
     for (int sweep_count = 1; sweep_count <= max_sweeps; ++sweep_count) {
         double worst = 0.0;
-        for (int i = 0; i < N_h - 1; ++i)
-            if (held < 0 || (i != held && i + 1 != held)) relax_pair(p, i, max_step, &worst);
-        for (int i = N_h - 2; i >= 0; --i)
-            if (held < 0 || (i != held && i + 1 != held)) relax_pair(p, i, max_step, &worst);
+        int changed_lo = N_h, changed_hi = -1;
+        int last = hi < N_h - 2 ? hi : N_h - 2;
+        for (int i = lo > 0 ? lo - 1 : 0; i <= last; ++i) {
+            if (free_pair(i, held) && relax_pair(p, i, max_step, &worst)) {
+                if (i < changed_lo) changed_lo = i;
+                changed_hi = i + 1;
+                if (i + 1 > last && i + 1 <= N_h - 2) last = i + 1;
+            }
+        }
+        if (changed_hi < 0) return sweep_count;
+        lo = N_h;
+        hi = -1;
+        int first = changed_lo > 0 ? changed_lo - 1 : 0;
+        for (int i = changed_hi < N_h - 2 ? changed_hi : N_h - 2; i >= first; --i) {
+            if (free_pair(i, held) && relax_pair(p, i, max_step, &worst)) {
+                if (i + 1 > hi) hi = i + 1;
+                lo = i;
+                if (i - 1 < first && i >= 1) first = i - 1;
+            }
+        }
         if (worst == 0.0) return sweep_count;
+        if (hi < 0) { /* the backward pass changed nothing: what it saw is settled */
+            lo = changed_lo;
+            hi = changed_hi;
+        }
     }
     return max_sweeps;
 }
