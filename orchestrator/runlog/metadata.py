@@ -81,11 +81,23 @@ def read_fmus(fmus: Mapping[str, str | Path]) -> dict[str, tuple[str, bytes]]:
     return out
 
 
+def fmu_content(data: bytes) -> str:
+    """The content hash of an FMU's bytes (fmus.identity.content_hash), "" if it is not a
+    readable FMU archive (the run log still records its file sha256)."""
+    from fmus.identity import UnsafeArchive, content_hash
+
+    try:
+        return content_hash(data)
+    except UnsafeArchive:
+        return ""
+
+
 def plant_roles(scenario: Mapping, fmus: Mapping[str, tuple[str, bytes]],
-                hashes: Mapping[str, str]) -> dict[str, str]:
-    """role -> JSON {"fmu": as the scenario names it, "file", "sha256", "parameters", "ports"}
-    of every FMU role: which model filled each role, so that a review can tell substitutions
-    apart."""
+                hashes: Mapping[str, str],
+                contents: Mapping[str, str] | None = None) -> dict[str, str]:
+    """role -> JSON {"fmu": as the scenario names it, "file", "sha256" (of the file),
+    "content_sha256" (fmu_content), "parameters", "ports"} of every FMU role: which model
+    filled each role, so that a review can tell substitutions apart."""
     plant = scenario.get("plant", {}) if isinstance(scenario, Mapping) else {}
     out = {}
     for role, (file_name, _) in fmus.items():
@@ -93,6 +105,7 @@ def plant_roles(scenario: Mapping, fmus: Mapping[str, tuple[str, bytes]],
         table = table if isinstance(table, Mapping) else {}
         out[role] = to_json({"fmu": table.get("fmu", file_name), "file": file_name,
                              "sha256": hashes[role],
+                             "content_sha256": (contents or {}).get(role, ""),
                              "parameters": table.get("parameters", {}),
                              "ports": table.get("ports", {})}, f"role {role}")
     return out
@@ -118,11 +131,14 @@ def write_run_description(writer: McapChunkWriter, *, scenario_json: str, scenar
     writer.add_metadata("excosim.scenario", {"json": scenario_json})
     writer.add_metadata("excosim.versions", versions)
     # One attachment per distinct FMU, named by its file (by FMU name too if two files differ).
-    hashes, names, attached = {}, {}, {}
+    # Attachments are stored by file bytes (each role's bytes must be its attachment's); the
+    # FMUs' identity is their content (excosim.fmu_content), which review and replay compare.
+    hashes, contents, names, attached = {}, {}, {}, {}
     to_attach: list[tuple[str, bytes]] = []
     for name, (file_name, data) in fmus.items():
         digest = hashlib.sha256(data).hexdigest()
         hashes[name] = digest
+        contents[name] = fmu_content(data)
         if digest not in attached:
             attachment = f"fmus/{file_name}"
             if attachment in attached.values():
@@ -131,7 +147,9 @@ def write_run_description(writer: McapChunkWriter, *, scenario_json: str, scenar
             to_attach.append((attachment, data))
         names[name] = attached[digest]
     writer.add_metadata("excosim.fmus", hashes)
-    writer.add_metadata("excosim.roles", plant_roles(json.loads(scenario_json), fmus, hashes))
+    writer.add_metadata("excosim.fmu_content", contents)
+    writer.add_metadata("excosim.roles", plant_roles(json.loads(scenario_json), fmus, hashes,
+                                                     contents))
     writer.add_metadata("excosim.fmu_attachments", names)
     if geometry is not None:
         writer.add_metadata("excosim.geometry", {
