@@ -3,13 +3,20 @@ content.
 
 A model folder fmus/<Model>/ holds variables.toml and the physics (model.c and any other .c/.h);
 fmus/common/ holds the shared FMI layers (fmi2_*.c for FMI 2.0, fmi3_*.c for FMI 3.0) and
-fmus/shared/<name>/ physics that several models compile in (`shared = [...]` in [model]). The FMU
-goes to $EXCOSIM_FMU_DIR (default ~/.cache/excosim/fmus/) as <Model>.fmu, an FMI 3.0 build as
-fmi3/<Model>.fmu. Its GUID (FMI 3: instantiationToken) is derived from a hash of everything that
-goes into it (FMI version, sources, table, flags, compiler version, FMI headers, this builder), so
-an FMU whose GUID matches the current hash is up to date and is not rebuilt. Builds are
-byte-reproducible: gcc runs in the source folder on relative names (no temporary path gets into
-the binary) and the zip entries carry a fixed date.
+fmus/shared/<name>/ physics that several models compile in (`shared = [...]` in [model]).
+
+The build key is a hash of everything that goes into an FMU (FMI version, sources, table, flags,
+compiler version, FMI headers, this builder); the GUID (FMI 3: instantiationToken) is derived
+from it. The FMU goes to $EXCOSIM_FMU_DIR (default ~/.cache/excosim/fmus/) as
+<Model>-<key12>/<Model>.fmu (FMI 3.0: fmi3/<Model>-<key12>/<Model>.fmu), <key12> the key's first
+12 hex digits: source trees that differ never share a file, trees that agree share the build.
+Next to it, content.sha256 holds the FMU's content hash (fmus.identity.content_hash: model
+description, binaries, sources) as built. A cached FMU is used only when its GUID is the key's and
+its content hash is the recorded one; anything else (a binary replaced inside the zip, a cut
+file) is rebuilt. Both files are written to a temporary name and renamed into place (atomic).
+Builds are byte-reproducible: gcc runs in the source folder on relative names (no temporary path
+gets into the binary), the zip entries are written in a fixed order with a fixed date and mode.
+The cache only grows; removing the folder is always safe.
 """
 
 from __future__ import annotations
@@ -27,11 +34,12 @@ from pathlib import Path
 
 from fmus.codegen import model_description, variables_header
 from fmus.codegen3 import model_description_fmi3
+from fmus.identity import UnsafeArchive, content_hash
 from fmus.table import TableError, read_table
 
 __all__ = [
     "BuildError", "MODELS_DIR", "FMI_VERSIONS", "model_names", "fmu_dir", "build", "build_model",
-    "build_all",
+    "build_all", "local_content_hashes",
 ]
 
 MODELS_DIR = Path(__file__).resolve().parent
@@ -46,6 +54,7 @@ HEADERS = {
 }
 # Shared-layer files that belong to the other FMI version (never compiled into this one).
 _OTHER_LAYER = {2: ("fmi3_",), 3: ("fmi2_", "instance.h")}
+CONTENT_RECORD = "content.sha256"  # next to a cached FMU: its content hash as built
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)  # fixed entry date: the same inputs give the same zip bytes
 CFLAGS = [
     "-std=c11", "-O2", "-fPIC", "-shared", "-fvisibility=hidden",
@@ -174,8 +183,8 @@ def _compile(gcc: str, source_dir: Path, c_files: list[str], headers: Path, outp
 
 
 def build(name: str, fmi_version: int = 2) -> Path:
-    """Build fmus/<name>/ into <fmu_dir()>/<name>.fmu (FMI 3.0: <fmu_dir()>/fmi3/<name>.fmu) if
-    its content changed; return the path.
+    """Build fmus/<name>/ into <fmu_dir()>/<name>-<key12>/<name>.fmu (FMI 3.0: under fmi3/)
+    unless that FMU is cached and intact (module docstring); return its path.
 
     Raises BuildError with one clear message for a missing model, a bad variables.toml,
     a missing gcc or a compile error.
@@ -199,7 +208,7 @@ def build_model(model_dir: Path, fmi_version: int = 2) -> Path:
     if not (model_dir / "variables.toml").is_file():
         raise BuildError(f"{model_dir} is not a model folder: it has no variables.toml")
     try:
-        table = read_table(model_dir / "variables.toml")
+        table = _read_table(model_dir / "variables.toml")
     except TableError as exc:
         raise BuildError(str(exc)) from None
     if table.identifier != name:
@@ -213,8 +222,9 @@ def build_model(model_dir: Path, fmi_version: int = 2) -> Path:
     guid = "{" + str(uuid.UUID(content[:32])) + "}"
 
     out_dir = fmu_dir() if fmi_version == 2 else fmu_dir() / "fmi3"
-    target = out_dir / f"{name}.fmu"
-    if target.is_file() and _guid_of(target) == guid:
+    folder = out_dir / f"{name}-{content[:12]}"
+    target, record = folder / f"{name}.fmu", folder / CONTENT_RECORD
+    if _intact(target, record, guid):
         return target
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -241,8 +251,55 @@ def build_model(model_dir: Path, fmi_version: int = 2) -> Path:
             _add(archive, f"binaries/{platform}/{name}.so", binary.read_bytes())
             for path in sorted(source_dir.iterdir()):
                 _add(archive, f"sources/{path.name}", path.read_bytes())
-        os.replace(partial, target)  # atomic: readers see the old or the new FMU, never half
+        (staging / CONTENT_RECORD).write_text(content_hash(partial) + "\n", encoding="ascii")
+        folder.mkdir(exist_ok=True)
+        # Atomic, record first: a reader sees the old or the new files, never half of one; a
+        # new record next to an old FMU only makes that reader build once more.
+        os.replace(staging / CONTENT_RECORD, record)
+        os.replace(partial, target)
     return target
+
+
+def _signature(path: Path) -> tuple | None:
+    """What changes whenever a file's bytes may have (ctime: any write, rename or chmod)."""
+    try:
+        stat = path.stat()
+    except OSError:
+        return None
+    return (str(path), stat.st_ino, stat.st_size, stat.st_mtime_ns, stat.st_ctime_ns)
+
+
+def _read_table(path: Path):
+    signature = _signature(path)
+    return _parse_table(signature) if signature is not None else read_table(path)
+
+
+@lru_cache(maxsize=32)
+def _parse_table(signature: tuple):
+    return read_table(Path(signature[0]))
+
+
+_VERIFIED: dict[tuple, tuple] = {}  # cached FMU's signature -> (guid, its record's signature)
+
+
+def _intact(target: Path, record: Path, guid: str) -> bool:
+    """Whether the cached FMU at `target` is the build of `guid` with its recorded content.
+    Verified once per version of the two files in this process (their signatures)."""
+    signatures = _signature(target), _signature(record)
+    if None in signatures:
+        return False
+    if _VERIFIED.get(signatures[0]) == (guid, signatures[1]):
+        return True
+    if _guid_of(target) != guid:
+        return False
+    try:
+        expected = record.read_text(encoding="ascii").strip()
+        if content_hash(target) != expected:
+            return False
+    except (OSError, UnicodeDecodeError, UnsafeArchive):
+        return False
+    _VERIFIED[signatures[0]] = (guid, signatures[1])
+    return True
 
 
 def _add(archive: zipfile.ZipFile, name: str, data: bytes) -> None:
@@ -250,6 +307,13 @@ def _add(archive: zipfile.ZipFile, name: str, data: bytes) -> None:
     info.compress_type = zipfile.ZIP_DEFLATED
     info.external_attr = 0o644 << 16  # regular file, rw-r--r--, whatever the umask
     archive.writestr(info, data)
+
+
+def local_content_hashes(fmi_version: int = 2) -> dict[str, str]:
+    """content hash -> model name of every FMU built from this tree's sources (built now if
+    needed; BuildError if one cannot be): what `fmus.identity.content_hash` of an FMU that came
+    from elsewhere is compared with to tell our build from native code of unknown origin."""
+    return {content_hash(build(name, fmi_version)): name for name in model_names()}
 
 
 def build_all(fmi_version: int = 2) -> dict[str, Path]:

@@ -157,10 +157,12 @@ def test_the_dataframe_has_one_row_per_period(dug):
 
 def test_the_workspace_limit_ends_a_campaign_normally(paper):
     # A heavy target drives D down every period: the limit at y = -9 m, one shift toward the
-    # machine by 0.5 m, the limit again there, and the end (paper Fig. 5).
-    scenario = scenario_from_dict({**paper.to_dict(), "periods": 60, "target_mass_kg": 300.0,
-                                   "adaptation": {**paper.to_dict()["adaptation"],
-                                                  "dy_0_m": 0.5}})
+    # machine by 0.5 m, the limit again there, and the end (paper Fig. 5). The pile's capacity
+    # goes up with it: a scenario may not ask for more than the bucket holds.
+    data = paper.to_dict()
+    data["plant"]["pile"]["parameters"]["capacity"] = 0.25  # m^3: 400 kg at 1600 kg/m^3
+    scenario = scenario_from_dict({**data, "periods": 60, "target_mass_kg": 300.0,
+                                   "adaptation": {**data["adaptation"], "dy_0_m": 0.5}})
     plant = KinematicPlant(scenario.geometry())
     result = run_campaign(scenario, plant=plant)
     assert result.termination == "workspace_limit"

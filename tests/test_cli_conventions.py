@@ -1,7 +1,7 @@
 """The `excosim` command line follows the field's conventions (fmpy, cosim-cli, git): --version,
 -h/--help everywhere, help that names values by what they are, shell completion, one-line
-mistakes with exit status 2, Ctrl-C in one line with 130, --json/--quiet/--force on `run`, log
-names that never collide, and plain English with correct plurals."""
+mistakes with exit status 2, Ctrl-C in one line with 130 (SIGTERM: 143), --json/--quiet/--force
+on `run`, log names that never collide, and plain English with correct plurals."""
 
 from __future__ import annotations
 
@@ -11,7 +11,6 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 from datetime import UTC, datetime
 from importlib.metadata import version
 from pathlib import Path
@@ -25,7 +24,7 @@ from orchestrator.campaign import loop as campaign
 from orchestrator.cli import run as run_command
 from orchestrator.cli.app import app
 from orchestrator.review.summary import ending
-from orchestrator.runlog import RunLogError, read_run
+from orchestrator.runlog import read_run
 from orchestrator.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -133,50 +132,71 @@ def test_every_mistake_is_one_line_exit_2_and_writes_nothing(tmp_path, args, exp
     assert done.stdout == "" and list(tmp_path.iterdir()) == []
 
 
-def _wait_for_a_period(log: Path, process: subprocess.Popen, seconds: float) -> None:
-    """Until the log holds one complete period (it is written as the run goes)."""
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        assert process.poll() is None, process.communicate()
-        try:
-            if log.exists() and read_run(log).periods:
-                return
-        except RunLogError:
-            pass  # the header is still being written
-        time.sleep(0.1)
-    process.kill()
-    pytest.fail(f"no period in {log} after {seconds} s")
+# `excosim` with each finished period said on stderr, then held for up to a minute: a signal
+# sent when the line arrives reaches the campaign inside period 2, however loaded the machine
+# (no race with a run that finishes first, no polling of the log).
+PAUSED_MAIN = """
+import sys, time
+import orchestrator.campaign as campaign
+real = campaign.run_campaign
+def run_campaign(scenario, *, progress=None, **kwargs):
+    def report(record):
+        progress(record)
+        print(f"test: period {record['k']} done", file=sys.stderr, flush=True)
+        time.sleep(60)
+    return real(scenario, progress=report, **kwargs)
+campaign.run_campaign = run_campaign
+from orchestrator.cli.app import main
+main()
+"""
 
 
-@pytest.mark.parametrize("named", [True, False], ids=["-o", "default name"])
-def test_ctrl_c_during_run_says_how_far_it_got_and_leaves_a_readable_log(tmp_path, named):
+def _signal_after_period_1(tmp_path: Path, named: bool, signum: int):
+    """Run 20 paper periods, send `signum` once period 1 is logged; (process, stderr after
+    the marker line, log path, temporary folder of the child)."""
+    temporary = tmp_path / "tmp"
+    temporary.mkdir()
     args = ["run", str(PAPER), "--periods", "20", *(["-o", "run.mcap"] if named else [])]
-    process = subprocess.Popen([sys.executable, "-c", MAIN, *args], cwd=tmp_path, env=ENV,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen([sys.executable, "-c", PAUSED_MAIN, *args], cwd=tmp_path,
+                               env={**ENV, "TMPDIR": str(temporary)}, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
     try:
-        deadline = time.monotonic() + 60
-        while not named and not list(tmp_path.glob("runs/*.mcap")):
-            assert time.monotonic() < deadline and process.poll() is None
-            time.sleep(0.05)
-        log = tmp_path / "run.mcap" if named else next(tmp_path.glob("runs/*.mcap"))
-        _wait_for_a_period(log, process, 120)
-        process.send_signal(signal.SIGINT)
+        line = process.stderr.readline()  # blocks until period 1 is done (or the run failed)
+        assert line == "test: period 1 done\n", line + process.communicate(timeout=60)[1]
+        process.send_signal(signum)
         out, err = process.communicate(timeout=60)
     finally:
         if process.poll() is None:
             process.kill()
             process.communicate()
+    log = tmp_path / "run.mcap" if named else next(tmp_path.glob("runs/*.mcap"))
+    assert out == ""
+    return process, err, log, temporary
+
+
+@pytest.mark.parametrize("named", [True, False], ids=["-o", "default name"])
+def test_ctrl_c_during_run_says_how_far_it_got_and_leaves_a_readable_log(tmp_path, named):
+    process, err, log, temporary = _signal_after_period_1(tmp_path, named, signal.SIGINT)
     run = read_run(log)
-    done = len(run.periods)
     shown = log.relative_to(tmp_path)
-    assert process.returncode == 130 and out == "" and 1 <= done < 20
-    assert err == (f"excosim: interrupted after {done} of 20 periods; log {shown} is readable "
-                   f"up to period {done}\n")
+    assert process.returncode == 130 and len(run.periods) == 1
+    assert err == (f"excosim: interrupted after 1 of 20 periods; log {shown} is readable "
+                   "up to period 1\n")
     assert run.finished and run.termination == "error"
     assert run.termination_message == campaign.INTERRUPTED
+    assert list(temporary.iterdir()) == []  # the extracted FMUs are gone
     review = CliRunner().invoke(app, ["review", str(log)])
-    plural = "period" if done == 1 else "periods"
-    assert f"interrupted after {done} {plural}" in review.stdout
+    assert "interrupted after 1 period" in review.stdout
+
+
+def test_sigterm_during_run_is_handled_like_ctrl_c_with_exit_143(tmp_path):
+    process, err, log, temporary = _signal_after_period_1(tmp_path, True, signal.SIGTERM)
+    run = read_run(log)
+    assert process.returncode == 143 and len(run.periods) == 1
+    assert err == ("excosim: terminated (SIGTERM) after 1 of 20 periods; log run.mcap is "
+                   "readable up to period 1\n")
+    assert run.finished and run.termination_message == campaign.INTERRUPTED  # flushed, closed
+    assert list(temporary.iterdir()) == []
 
 
 def test_run_json_is_one_object_with_the_records_and_the_ending(tmp_path, double_plant):

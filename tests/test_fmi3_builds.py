@@ -49,7 +49,7 @@ def builds(request):
 
 def test_fmi3_build_is_valid_and_cached_separately(builds):
     name, fmu2, fmu3 = builds
-    assert fmu3 != fmu2 and fmu3.parent.name == "fmi3"
+    assert fmu3 != fmu2 and fmu3.parent.parent.name == "fmi3"
     assert validate_fmu(str(fmu3)) == []
     d2, d3 = read_model_description(str(fmu2)), read_model_description(str(fmu3))
     assert (d2.fmiVersion, d3.fmiVersion) == ("2.0", "3.0")

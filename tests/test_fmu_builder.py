@@ -126,7 +126,8 @@ def test_models_lists_every_model_folder():
 
 def test_build_writes_a_complete_fmu_into_the_configured_folder(out_dir):
     path = fmus.build("HydraulicCylinder")
-    assert path == out_dir / "HydraulicCylinder.fmu"
+    assert path.parent.parent == out_dir and path.name == "HydraulicCylinder.fmu"
+    assert path.parent.name.startswith("HydraulicCylinder-") and len(path.parent.name) == 30
     names = zipfile.ZipFile(path).namelist()
     assert {"modelDescription.xml", "binaries/linux64/HydraulicCylinder.so",
             "sources/model.c", "sources/fmi2_cs.c", "sources/variables.h",
@@ -151,7 +152,8 @@ def test_cache_hit_does_not_rebuild_and_a_source_change_does(out_dir, cylinder_c
 
 
 def test_compile_error_names_the_file_and_line_and_keeps_the_old_fmu(out_dir, cylinder_copy):
-    good = fmus.build_model(cylinder_copy).read_bytes()
+    built = fmus.build_model(cylinder_copy)
+    good = built.read_bytes()
     source = cylinder_copy / "model.c"
     lines = source.read_text().splitlines()
     lines.insert(40, "int broken = ;")
@@ -161,7 +163,8 @@ def test_compile_error_names_the_file_and_line_and_keeps_the_old_fmu(out_dir, cy
     message = str(error.value)
     assert "HydraulicCylinder: gcc failed" in message and "model.c:41" in message
     assert "error" in message and "Traceback" not in message
-    assert (out_dir / "HydraulicCylinder.fmu").read_bytes() == good  # untouched
+    assert built.read_bytes() == good  # untouched
+    assert list(out_dir.glob("HydraulicCylinder-*")) == [built.parent]  # nothing half-made
 
 
 @pytest.mark.parametrize("edit, expected", [
@@ -197,7 +200,7 @@ def test_command_line_reports_failures_without_traceback(out_dir, monkeypatch, c
     monkeypatch.setattr("fmus.__main__.model_names", lambda: ["HydraulicCylinder", "Crane"])
     assert main(["build"]) == 1
     captured = capsys.readouterr()
-    assert f"HydraulicCylinder: {out_dir / 'HydraulicCylinder.fmu'}" in captured.out
+    assert f"HydraulicCylinder: {fmus.build('HydraulicCylinder')}" in captured.out
     assert "error: unknown model 'Crane'" in captured.err and "Traceback" not in captured.err
     assert main(["bogus"]) == 2
 

@@ -19,7 +19,13 @@ import fmus
 from orchestrator.campaign import loop as campaign
 from orchestrator.campaign import run_campaign
 from orchestrator.cli.replay import replay
-from orchestrator.review.replay import ReplayRefused, ReplayReport, compare_periods, replay_run
+from orchestrator.review.replay import (
+    ReplayRefused,
+    ReplayReport,
+    check_fmus,
+    compare_periods,
+    replay_run,
+)
 from orchestrator.runlog import RunLog, read_run
 from orchestrator.scenario import load_scenario, scenario_from_dict
 
@@ -62,10 +68,33 @@ def annotated_fmu(runs) -> Path:
 
 
 @pytest.fixture(scope="module")
-def annotated_run(runs, annotated_fmu):
+def foreign_fmu(runs) -> Path:
+    """Our cylinder FMU with a comment added to its sources/model.c: the same binary, but no
+    longer what our sources build (another content hash)."""
+    path = runs / "HydraulicCylinder-foreign.fmu"
+    with zipfile.ZipFile(fmus.build("HydraulicCylinder")) as ours, \
+            zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as theirs:
+        for info in ours.infolist():
+            data = ours.read(info)
+            theirs.writestr(info, data + b"/* vendored */\n" if info.filename ==
+                            "sources/model.c" else data)
+    return path
+
+
+def _boom_run(runs, fmu: Path, name: str):
     data = load_scenario(PAPER, ["periods=2"]).to_dict()
-    data["plant"]["boom"]["fmu"] = str(annotated_fmu)  # its parameters and ports stay
-    return _campaign(runs, "annotated", scenario_from_dict(data, source="annotated"))
+    data["plant"]["boom"]["fmu"] = str(fmu)  # its parameters and ports stay
+    return _campaign(runs, name, scenario_from_dict(data, source=name))
+
+
+@pytest.fixture(scope="module")
+def annotated_run(runs, annotated_fmu):
+    return _boom_run(runs, annotated_fmu, "annotated")
+
+
+@pytest.fixture(scope="module")
+def foreign_run(runs, foreign_fmu):
+    return _boom_run(runs, foreign_fmu, "foreign")
 
 
 def _sha256(path: Path) -> str:
@@ -107,23 +136,77 @@ def test_load_cell_noise_replays_from_the_files_seed(noisy_run, paper_run):
     _assert_repeats(replay_run(path), records)
 
 
-def test_an_fmu_that_is_not_our_build_needs_trust(annotated_run, annotated_fmu, paper_run):
-    path, records = annotated_run
-    digest = _sha256(annotated_fmu)
-    assert digest != _sha256(fmus.build("HydraulicCylinder"))
+def test_an_fmu_that_is_not_our_build_needs_trust(foreign_run, foreign_fmu, paper_run):
+    path, records = foreign_run
+    digest = _sha256(foreign_fmu)
+    assert fmus.content_hash(foreign_fmu) != fmus.content_hash(fmus.build("HydraulicCylinder"))
     with pytest.raises(ReplayRefused) as refused:
         replay_run(path)
     message = str(refused.value)
     assert "\n" not in message and "--trust" in message and "native code" in message
-    assert "component boom (fmus/HydraulicCylinder-annotated.fmu" in message
+    assert "component boom (fmus/HydraulicCylinder-foreign.fmu" in message
     assert digest[:12] in message and "stick" not in message
 
     report = replay_run(path, trust=True)
     _assert_repeats(report, records)
     assert report.fmus["boom"].trusted_by == "--trust" and report.fmus["boom"].sha256 == digest
+    assert report.fmus["boom"].content_sha256 == fmus.content_hash(foreign_fmu)
     assert report.fmus["stick"].trusted_by == "local build"
-    # The extra file changes the bytes, not the model: the run equals the plain one.
+    # Only a comment in the sources changed, not the binary: the run equals the plain one.
     assert [r["mass_kg"] for r in records] == [r["mass_kg"] for r in paper_run[1]]
+
+
+def test_our_build_in_another_zip_is_our_build(annotated_run, annotated_fmu, paper_run):
+    """Identity is content: a documentation file more changes the zip's bytes, not the FMU."""
+    path, records = annotated_run
+    assert _sha256(annotated_fmu) != _sha256(fmus.build("HydraulicCylinder"))
+    report = replay_run(path)
+    _assert_repeats(report, records)
+    assert report.fmus["boom"].trusted_by == "local build"
+    assert report.fmus["boom"].sha256 == _sha256(annotated_fmu)
+    assert read_run(path).metadata["excosim.fmu_content"]["boom"] == fmus.content_hash(
+        fmus.build("HydraulicCylinder"))
+    assert [r["mass_kg"] for r in records] == [r["mass_kg"] for r in paper_run[1]]
+
+
+def _linked_fmu(folder: Path) -> Path:
+    """Our cylinder FMU with one more entry: a symbolic link out of the extraction folder."""
+    path = folder / "linked.fmu"
+    shutil.copyfile(fmus.build("HydraulicCylinder"), path)
+    link = zipfile.ZipInfo("resources/passwd")
+    link.create_system, link.external_attr = 3, (0o120777 << 16)
+    with zipfile.ZipFile(path, "a") as archive:
+        archive.writestr(link, "/etc/passwd")
+    return path
+
+
+def test_an_unsafe_attachment_is_refused_even_with_trust(paper_run, tmp_path):
+    cylinder, pile = _linked_fmu(tmp_path), fmus.build("Pile")
+    data = load_scenario(PAPER, ["periods=1"]).to_dict()
+    path = tmp_path / "linked.mcap"
+    log = RunLog(path, scenario=data, scenario_text=json.dumps(data), scenario_name="linked",
+                 fmus={"boom": cylinder, "stick": fmus.build("HydraulicCylinder"),
+                       "bucket": fmus.build("HydraulicCylinder"), "pile": pile},
+                 plant_kind="sim", target_mass_kg=30.0)
+    log.close("error", "period 1: RuntimeError: stopped")  # a replay would dig period 1
+    for trust in (False, True):
+        with pytest.raises(ReplayRefused) as refused:
+            replay_run(path, trust=trust)
+        message = str(refused.value)
+        assert "\n" not in message and "'resources/passwd' is a link" in message
+        assert "component boom: attachment 'fmus/linked.fmu'" in message
+        assert "not even with --trust" in message
+
+
+@pytest.mark.parametrize("name", ["fmus/../../x.fmu", "/tmp/x.fmu", "fmus/x\x00.fmu"])
+def test_an_attachment_name_that_reaches_outside_is_refused(paper_run, name):
+    run = read_run(paper_run[0])
+    attachments = dict(run.metadata["excosim.fmu_attachments"], boom=name)
+    forged = dataclasses.replace(run, metadata={**run.metadata,
+                                                "excosim.fmu_attachments": attachments})
+    with pytest.raises(ReplayRefused, match="component boom: attachment .* not replayed "
+                       r"\(not even with --trust\)"):
+        check_fmus(forged, trust=True)
 
 
 def test_an_altered_attachment_is_refused_even_with_trust(paper_run, tmp_path):
@@ -237,14 +320,14 @@ def test_replay_command_json_and_exit_status(paper_run, capsys):
     assert answer["fmus"]["pile"]["sha256"] == _sha256(fmus.build("Pile"))
 
 
-def test_replay_command_prints_a_table_and_refuses_in_one_line(annotated_run, tmp_path,
+def test_replay_command_prints_a_table_and_refuses_in_one_line(foreign_run, tmp_path,
                                                                 capsys):
     text = tmp_path / "notes.mcap"
     text.write_text("not a run log\n")
     message, status = replay(text, trust=False, as_json=False)
     assert status == 2 and "\n" not in message and "is not an MCAP file" in message
 
-    message, status = replay(annotated_run[0], trust=False, as_json=True)
+    message, status = replay(foreign_run[0], trust=False, as_json=True)
     assert status == 2 and "--trust" in message
     assert capsys.readouterr().out == ""
 
@@ -295,7 +378,7 @@ def test_replay_command_refuses_a_scenario_this_version_does_not_accept(tmp_path
     assert "trajectory.k_S: unknown key" in message
 
 
-def test_the_command_line_replays_and_refuses(paper_run, annotated_run):
+def test_the_command_line_replays_and_refuses(paper_run, foreign_run):
     from typer.testing import CliRunner
 
     from orchestrator.cli.app import app
@@ -304,6 +387,6 @@ def test_the_command_line_replays_and_refuses(paper_run, annotated_run):
     done = runner.invoke(app, ["replay", str(paper_run[0])])
     assert done.exit_code == 0, done.output
     assert "replay matches the log: 2 periods" in done.stdout
-    done = runner.invoke(app, ["replay", str(annotated_run[0])])
+    done = runner.invoke(app, ["replay", str(foreign_run[0])])
     assert done.exit_code == 2 and done.stderr.count("\n") == 1
     assert "boom" in done.stderr and "--trust" in done.stderr

@@ -19,7 +19,9 @@ For k = 1..periods (paper section 2.3, Fig. 5, Fig. 4's loop):
 
 from __future__ import annotations
 
+import contextlib
 import math
+import shutil
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -28,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from orchestrator.campaign.record import period_record, records_dataframe
+from orchestrator.campaign.watchdog import StepWatchdog
 from orchestrator.scenario.model import Scenario, load_scenario
 from planner.adaptation import Decision, initial_state, next_deepest_point
 from planner.trajectory import JointTrajectory
@@ -116,6 +119,8 @@ def run_campaign(
     progress: Callable[[dict[str, Any]], None] | None = None,
     plant: Plant | None = None,
     overwrite: bool = False,
+    step_timeout_s: float | None = None,
+    on_step_timeout: Callable[[str], None] | None = None,
 ) -> CampaignResult:
     """Dig `scenario.periods` periods (fewer if the workspace runs out) and report.
 
@@ -124,6 +129,11 @@ def run_campaign(
     progress: called with each period's record once the period is done.
     plant: the plant to dig with instead of the scenario's own (it is closed at the end too).
     overwrite: replace an existing file at log_path (default: refuse it).
+    step_timeout_s, on_step_timeout: when one FMU step does not return within step_timeout_s
+        (orchestrator.campaign.watchdog), the log is closed with termination "error" and a
+        message naming the FMU, the plant's temporary FMU folders are removed, and
+        on_step_timeout(message) is called from the watchdog's thread; it must end the process
+        (the stuck call never returns: `excosim run` exits with status 1).
     A log that cannot be opened (FileExistsError for an existing file, OSError) raises before
     anything is dug. After that it never raises for a runtime failure: the result's
     termination is "error" and the log is closed with it. KeyboardInterrupt closes plant and
@@ -139,10 +149,22 @@ def run_campaign(
         if plant is not None:
             plant.close()
         raise
+
+    def hang(detail: str) -> None:  # the watchdog's thread; the main thread is in a step
+        message = f"period {len(records) + 1}: {detail}"
+        if log is not None:
+            log.close("error", message)
+        for folder in getattr(plant, "temporary_folders", lambda: [])():
+            shutil.rmtree(folder, ignore_errors=True)
+        on_step_timeout(message)
+
+    watchdog = StepWatchdog(step_timeout_s, hang) if step_timeout_s and on_step_timeout \
+        else contextlib.nullcontext()
     try:
-        if plant is None:
-            plant = build_plant(scenario)
-        termination, message = _dig(scenario, plant, log, records, progress)
+        with watchdog:
+            if plant is None:
+                plant = build_plant(scenario)
+            termination, message = _dig(scenario, plant, log, records, progress)
     except Exception as failure:
         termination, error = "error", failure
         period = len(records) + 1

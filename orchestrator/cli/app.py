@@ -1,8 +1,9 @@
 """The `excosim` command line.
 
 Every user mistake ends in one line on stderr and exit status 2; a runtime failure in one line and
-exit status 1; Ctrl-C in one line and 130. No traceback reaches a user. `-h`/`--help` on every
-command, `--version`, `excosim completion SHELL` (orchestrator.cli.conventions).
+exit status 1; Ctrl-C in one line and 130 (SIGTERM during `run`: 143, orchestrator.cli.signals).
+No traceback reaches a user. `-h`/`--help` on every command, `--version`, `excosim completion
+SHELL` (orchestrator.cli.conventions).
 """
 
 from __future__ import annotations
@@ -45,6 +46,8 @@ scenario_app = typer.Typer(cls=Group, help="Look at scenarios without running th
 app.add_typer(scenario_app, name="scenario")
 
 RUN_LOG = "RUN.mcap"
+Trust = Annotated[bool, typer.Option("--trust", help="Run FMU files that differ from FMUs built "
+                                     "here from our sources (they are native code).")]
 
 
 def _fail(message: str, code: int) -> None:
@@ -168,6 +171,11 @@ def run(
         bool, typer.Option("--emulate", help="Lab plant: run the emulated excavator in this "
                            "process on python-can's virtual bus (hardware-in-the-loop).")
     ] = False,
+    trust: Trust = False,
+    step_timeout: Annotated[
+        float, typer.Option("--step-timeout", metavar="S", help="End the run when one FMU step "
+                            "does not return within S seconds (0: never).")
+    ] = 30.0,
 ) -> None:
     """Run a digging campaign: plan, dig and weigh period after period; log it to MCAP."""
     from orchestrator.cli import run as run_command
@@ -181,7 +189,7 @@ def run(
     items = [*lab_items, *(overrides or []),
              *([f"periods={periods}"] if periods is not None else [])]
     failure = run_command.run(scenario, output, items, as_json=as_json, quiet=quiet,
-                              force=force)
+                              force=force, trust=trust, step_timeout_s=step_timeout)
     if failure is not None:
         _fail(*failure)
 
@@ -247,10 +255,7 @@ def compare(
 @app.command("replay", cls=Command)
 def replay(
     run_log: Annotated[Path, typer.Argument(metavar=RUN_LOG, help="Log of a simulated run.")],
-    trust: Annotated[
-        bool, typer.Option("--trust", help="Run attached FMUs even when they differ from "
-                           "FMUs built here from our sources (they are native code).")
-    ] = False,
+    trust: Trust = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
     """Re-run a campaign from the scenario and FMUs in its log; check every period matches."""
@@ -269,12 +274,13 @@ def scenario_show(
                                        help="Override a scenario value (repeatable).")
     ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    trust: Trust = False,
 ) -> None:
     """The resolved scenario with every default, the FMU and sha256 of each plant role and the
     servo designed for each cylinder, without running anything."""
     from orchestrator.cli.scenario_show import show
 
-    failure = show(scenario, overrides or [], as_json)
+    failure = show(scenario, overrides or [], as_json, trust)
     if failure is not None:
         _fail(*failure)
 
@@ -341,12 +347,13 @@ def emulate(
         list[str] | None, typer.Option("--set", metavar="KEY=VALUE",
                                        help="Override a scenario value (repeatable).")
     ] = None,
+    trust: Trust = False,
 ) -> None:
     """Run the emulated lab excavator (our FMUs) as the device side of the CAN protocol."""
     from orchestrator.cli.lab import emulate as emulate_device
 
     failure = emulate_device(interface, channel, bitrate, scenario, time_scale, duration,
-                             faults or [], overrides or [])
+                             faults or [], overrides or [], trust)
     if failure is not None:
         _fail(*failure)
 

@@ -35,9 +35,10 @@ def run_overrides(plant: str | None, emulate: bool) -> tuple[list[str] | None, s
 
 def emulate(interface: str, channel: str, bitrate: int, scenario_path: Path | None,
             time_scale: float | None, duration_s: float | None, faults: list[str],
-            overrides: list[str]) -> tuple[str, int] | None:
+            overrides: list[str], trust: bool = False) -> tuple[str, int] | None:
     """Run the emulated device until Ctrl-C or `duration_s` wall seconds; None on success, else
-    (one-line message, exit status). interface, channel, bitrate: the python-can bus; the
+    (one-line message, exit status; an FMU file that is not ours needs `trust`,
+    orchestrator.cli.trust). interface, channel, bitrate: the python-can bus; the
     scenario (default: the `lab` machine preset) gives the simulated machine, the stream rate,
     timeouts and time scale ([plant.lab]); faults: KEY=VALUE items of [plant.lab.faults]."""
     from orchestrator.plants.lab.bus import LabLinkError
@@ -59,6 +60,11 @@ def emulate(interface: str, channel: str, bitrate: int, scenario_path: Path | No
         scenario = _scenario(scenario_path, items)
     except ScenarioError as error:
         return str(error), 2
+    from orchestrator.cli.trust import trust_problem
+
+    refused = trust_problem(scenario, trust)
+    if refused is not None:
+        return refused
     settings = scenario.plant.lab.settings()
     from orchestrator.plants.lab.factory import start_emulator
 

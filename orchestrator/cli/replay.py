@@ -4,7 +4,8 @@ FMUs in its file and check that every period repeats (orchestrator.review.replay
 Exit status (set by the caller from the returned failure): 0 when the replay matches the log;
 1 when it differs (or our FMUs cannot be built to check the file's against); 2 when the file
 cannot or may not be replayed (not a run log, a lab run, an altered or untrusted FMU, a
-scenario this version no longer accepts).
+scenario this version no longer accepts); 130 for Ctrl-C and 143 for SIGTERM, after the replay's
+plant and temporary folder are cleaned up (orchestrator.cli.signals).
 """
 
 from __future__ import annotations
@@ -19,12 +20,29 @@ from rich.text import Text
 
 from orchestrator.cli import tables
 from orchestrator.cli.conventions import count
+from orchestrator.cli.signals import (
+    INTERRUPTED_EXIT,
+    TERMINATED_EXIT,
+    Terminated,
+    terminate_like_ctrl_c,
+)
 from orchestrator.review.replay import ReplayReport
 
 
 def replay(path: Path, trust: bool, as_json: bool) -> tuple[str, int] | None:
     """Replay the run at `path`; None when it matches, else (one-line message, exit status).
     Prints a table per period and a summary line, or with `as_json` one JSON object."""
+    with terminate_like_ctrl_c():
+        try:
+            return _replay(path, trust, as_json)
+        except Terminated:
+            return f"replay of {path} terminated (SIGTERM); the log is unchanged", \
+                TERMINATED_EXIT
+        except KeyboardInterrupt:
+            return f"replay of {path} interrupted; the log is unchanged", INTERRUPTED_EXIT
+
+
+def _replay(path: Path, trust: bool, as_json: bool) -> tuple[str, int] | None:
     import fmus
     from orchestrator.review.replay import ReplayRefused, replay_run
     from orchestrator.runlog import RunLogError

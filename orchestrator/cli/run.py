@@ -2,16 +2,21 @@
 (or one JSON object with --json, or nothing with --quiet).
 
 Exit status (set by the caller from the returned failure): 0 when the campaign ends by its period
-count or at the workspace limit; 2 for a user's mistake (scenario, --set, output path); 1 for a
-runtime failure, whose MCAP log stays readable up to the last finished period; 130 for Ctrl-C,
-which closes the log after the last finished period.
+count or at the workspace limit; 2 for a user's mistake (scenario, --set, output path, an FMU
+file that is not ours without --trust); 1 for a runtime failure, whose MCAP log stays readable
+up to the last finished period; 130 for Ctrl-C and 143 for SIGTERM (orchestrator.cli.signals),
+which both close the log after the last finished period with its end record, remove the FMUs'
+temporary folders and say in one line how many periods were done and where the log is.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import math
+import os
 import re
+import sys
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -21,7 +26,13 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.text import Text
 
 from orchestrator.cli import tables
-from orchestrator.cli.conventions import count, json_text
+from orchestrator.cli.conventions import count, fail, json_text
+from orchestrator.cli.signals import (
+    INTERRUPTED_EXIT,
+    TERMINATED_EXIT,
+    Terminated,
+    terminate_like_ctrl_c,
+)
 from orchestrator.review.summary import band_kg, ending, run_figures
 
 RUNS = Path("runs")  # where logs go without -o, relative to the working folder
@@ -54,10 +65,34 @@ def reserve_default_output(scenario: Any, now: datetime | None = None,
     raise FileExistsError(f"{folder / base}.mcap and 998 variants exist")
 
 
+STEP_TIMEOUT_S = 30.0  # default bound on one FMU step (a 10 ms step takes well under 1 ms)
+
+
 def run(scenario_path: Path, output: Path | None, overrides: list[str], *, as_json: bool = False,
-        quiet: bool = False, force: bool = False) -> tuple[str, int] | None:
-    """Run the campaign; None on success, else (one-line message, exit status)."""
+        quiet: bool = False, force: bool = False, trust: bool = False,
+        step_timeout_s: float = STEP_TIMEOUT_S) -> tuple[str, int] | None:
+    """Run the campaign; None on success, else (one-line message, exit status). An FMU file
+    that is not one of our builds runs only with `trust` (orchestrator.cli.trust); an FMU step
+    that does not return within step_timeout_s (0: no bound) ends the process with status 1."""
+    if not (math.isfinite(step_timeout_s) and step_timeout_s >= 0.0):
+        return f"--step-timeout must be a number of seconds >= 0, got {step_timeout_s!r}", 2
+    with terminate_like_ctrl_c():
+        try:
+            return _run(scenario_path, output, overrides, as_json=as_json, quiet=quiet,
+                        force=force, trust=trust, step_timeout_s=step_timeout_s)
+        except Terminated:  # before or after the campaign: no log of ours is open
+            return f"terminated (SIGTERM) {_OUTSIDE}", TERMINATED_EXIT
+        except KeyboardInterrupt:
+            return f"interrupted {_OUTSIDE}", INTERRUPTED_EXIT
+
+
+_OUTSIDE = "while loading the scenario or printing the results; no period was cut"
+
+
+def _run(scenario_path: Path, output: Path | None, overrides: list[str], *, as_json: bool,
+         quiet: bool, force: bool, trust: bool, step_timeout_s: float) -> tuple[str, int] | None:
     import fmus
+    from orchestrator.cli.trust import trust_problem
     from orchestrator.scenario import ScenarioError, load_scenario
 
     try:
@@ -66,6 +101,9 @@ def run(scenario_path: Path, output: Path | None, overrides: list[str], *, as_js
         return str(error), 2
     except fmus.BuildError as error:
         return str(error), 1
+    refused = trust_problem(scenario, trust, quiet)
+    if refused is not None:
+        return refused
     if output is not None:
         problem = _check_output(output, force)
         if problem is not None:
@@ -77,11 +115,11 @@ def run(scenario_path: Path, output: Path | None, overrides: list[str], *, as_js
         except OSError as error:
             return f"cannot create a log in {RUNS}/: {error.strerror or error}", 2
     return _dig(scenario, log_path, reserved=output is None, force=force, as_json=as_json,
-                quiet=quiet)
+                quiet=quiet, step_timeout_s=step_timeout_s)
 
 
 def _dig(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_json: bool,
-         quiet: bool) -> tuple[str, int] | None:
+         quiet: bool, step_timeout_s: float) -> tuple[str, int] | None:
     from orchestrator.campaign import run_campaign
 
     err = Console(stderr=True, highlight=False)
@@ -98,11 +136,23 @@ def _dig(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_json:
                 bar.update(task, advance=1, description=f"{scenario.name}: period "
                            f"{record['k'] + 1} (last {record['mass_kg']:.1f} kg)")
 
+            def stuck(message: str) -> None:  # the watchdog's thread; the log is closed
+                bar.stop()
+                fail(f"run stopped: {message} (log {log_path} is readable up to period "
+                     f"{len(done)})")
+                sys.stdout.flush()
+                sys.stderr.flush()
+                os._exit(1)  # the main thread is stuck in native code: nothing else ends it
+
             # A reserved default name is an empty file of ours: writing over it is no loss.
             result = run_campaign(scenario, log_path=log_path, progress=progress,
-                                  overwrite=force or reserved)
+                                  overwrite=force or reserved, step_timeout_s=step_timeout_s,
+                                  on_step_timeout=stuck)
     except KeyboardInterrupt:
-        return _interrupted(log_path, len(done), scenario.periods, reserved), 130
+        return _interrupted(log_path, len(done), scenario.periods, reserved), INTERRUPTED_EXIT
+    except Terminated:
+        return _interrupted(log_path, len(done), scenario.periods, reserved,
+                            "terminated (SIGTERM)"), TERMINATED_EXIT
     except FileExistsError:  # created by someone else since _check_output looked
         return f"output {str(log_path)!r} already exists; remove it or add --force", 2
     except OSError as error:
@@ -131,14 +181,15 @@ def _drop_if_empty(path: Path, reserved: bool) -> bool:
     return False
 
 
-def _interrupted(log_path: Path, periods_done: int, planned: int, reserved: bool) -> str:
+def _interrupted(log_path: Path, periods_done: int, planned: int, reserved: bool,
+                 how: str = "interrupted") -> str:
     if _drop_if_empty(log_path, reserved) or not log_path.exists():
         where = "no log was written"
     elif periods_done:
         where = f"log {log_path} is readable up to period {periods_done}"
     else:
         where = f"log {log_path} holds no period"
-    return f"interrupted after {periods_done} of {count(planned, 'period')}; {where}"
+    return f"{how} after {periods_done} of {count(planned, 'period')}; {where}"
 
 
 def _check_output(path: Path, force: bool) -> str | None:

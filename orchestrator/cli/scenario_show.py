@@ -87,10 +87,14 @@ def _servo_line(role: str, design: dict[str, Any]) -> str:
     return line
 
 
-def show(path: Path, overrides: list[str], as_json: bool) -> tuple[str, int] | None:
+def show(path: Path, overrides: list[str], as_json: bool,
+         trust: bool = False) -> tuple[str, int] | None:
     """Print the resolved scenario at `path` with `overrides`; None, or (one line, status 2)
-    for a scenario mistake, 1 for a failure to build an FMU or design a servo."""
+    for a scenario mistake or an FMU file that is not ours without `trust` (designing the
+    servos instantiates the FMUs: orchestrator.cli.trust), 1 for a failure to build an FMU or
+    design a servo."""
     import fmus
+    from orchestrator.cli.trust import trust_problem
 
     try:
         scenario = load_scenario(path, overrides)
@@ -98,6 +102,9 @@ def show(path: Path, overrides: list[str], as_json: bool) -> tuple[str, int] | N
         return str(error), 2
     except fmus.BuildError as error:
         return str(error), 1
+    refused = trust_problem(scenario, trust, quiet=as_json)
+    if refused is not None:
+        return refused
     try:
         roles = plant_roles(scenario)
         servos = servo_designs(scenario)

@@ -107,9 +107,12 @@ class SimulatedExcavator:
                                  f"linkage's stroke {stroke} m")
             design_stroke = None if config.design_strokes_m is None \
                 else config.design_strokes_m[index]
-            designs.append(design_servo(
-                model, config.communication_step_s, design_stroke, config.servo_damping,
-                config.servo_gain_margin_db, config.servo_phase_margin_deg))
+            try:
+                designs.append(_design_servo(
+                    model, config.communication_step_s, design_stroke, config.servo_damping,
+                    config.servo_gain_margin_db, config.servo_phase_margin_deg))
+            except ValueError as error:  # the design's own message does not name the joint
+                raise ValueError(f"{joint}: {error}") from None
             linear_models.append(None)
             identifications.append(None)
         self.servo_designs: tuple[ServoDesign | LinearServoDesign, ...] = tuple(designs)
@@ -162,6 +165,12 @@ class SimulatedExcavator:
                              for d in self.servo_designs)
         profile, grid = self._profile()
         self._initial_surface = None if profile is None or grid is None else (grid, profile)
+
+    def temporary_folders(self) -> list[str]:
+        """The folders the FMUs are extracted into (removed by close()); for a clean-up that
+        cannot close the FMUs (one of them is stuck in a step: orchestrator.campaign.watchdog)."""
+        folders = getattr(self._master, "_unzip_dirs", None) or {}
+        return list(folders.values())
 
     def close(self) -> None:
         """Free every FMU instance; safe twice."""
@@ -328,14 +337,28 @@ def _coupling(geometry) -> ArmCoupling:
     return ArmCoupling(geometry)
 
 
-def _description(component: str, spec):
-    from fmpy import read_model_description
+@lru_cache(maxsize=64)
+def _design_servo(model: CylinderModel, *settings) -> ServoDesign:
+    """plant_models.servo.design_servo, remembered: a pure function of frozen values, and the
+    scenario loader designs every servo once before the run designs it again."""
+    return design_servo(model, *settings)
 
+
+def _description(component: str, spec):
     path = fmu_path(spec, component)
     try:
-        return read_model_description(str(path))
+        stat = path.stat()
+        return _read_description(str(path), stat.st_mtime_ns, stat.st_ctime_ns, stat.st_size)
     except Exception as error:
         raise ValueError(f"{component}: cannot read {path.name}: {error}") from None
+
+
+@lru_cache(maxsize=64)
+def _read_description(path: str, *stat):
+    """The model description of the FMU file at `path` as it is (`stat`: its identity now)."""
+    from fmpy import read_model_description
+
+    return read_model_description(path)
 
 
 def _model_from_fmu(description, parameters) -> CylinderModel | None:

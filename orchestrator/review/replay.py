@@ -7,9 +7,11 @@ repeats every period's weighed mass, deepest point D and trajectory duration exa
 (compared within TOLERANCE, 1e-9 in kg, m and s).
 
 An FMU is native code that runs inside this process. A replay therefore runs only FMUs whose
-sha256 equals the one of an FMU built from this version's sources (`fmus.build`), unless the
-caller trusts the file; a file whose attachment does not hash to its own metadata is refused
-even then (it was altered after it was written).
+content (fmus.identity.content_hash: model description, binaries, sources; not the zip's bytes)
+equals that of an FMU built from this version's sources (`fmus.build`), unless the caller
+trusts the file. Refused even then: an attachment whose bytes do not hash to the file's own
+metadata (it was altered after it was written), and one that is not a safe archive (too many or
+too large entries, links, absolute or escaping names, NUL bytes: fmus.identity.check_archive).
 
     report = replay_run("runs/paper.mcap")
     report.matches, report.first_difference(), report.as_dict()
@@ -44,12 +46,14 @@ class ReplayRefused(ValueError):
 
 @dataclass(frozen=True)
 class FmuCheck:
-    """The FMU a component ran: its attachment, sha256 and why the replay runs it
-    (trusted_by: "local build", the same bytes as our build, or "--trust")."""
+    """The FMU a component ran: its attachment, the attachment's sha256, its content hash and
+    why the replay runs it (trusted_by: "local build", the same content as our build, or
+    "--trust")."""
 
     attachment: str
     sha256: str
     trusted_by: str
+    content_sha256: str = ""
 
 
 @dataclass
@@ -210,18 +214,11 @@ def _replay_length(run: RunFile, scenario_periods: Any) -> tuple[int, bool]:
     return logged, run.finished and not interrupted and run.termination == "periods"
 
 
-def _local_hashes() -> dict[str, str]:
-    """sha256 -> model name of every FMU built from our sources (fmus.build)."""
-    import fmus
-
-    return {hashlib.sha256(fmus.build(name).read_bytes()).hexdigest(): name
-            for name in fmus.MODELS}
-
-
 def check_fmus(run: RunFile, *, trust: bool = False) -> dict[str, FmuCheck]:
-    """component -> the FMU of `run` it may run; ReplayRefused for a missing or altered
-    attachment (always) or one that differs from our builds (unless `trust`)."""
+    """component -> the FMU of `run` it may run; ReplayRefused for a missing, altered or unsafe
+    attachment (always) or one whose content differs from our builds (unless `trust`)."""
     import fmus as fmu_builder
+    from fmus.identity import LIMITS, UnsafeArchive, content_hash, unsafe_name
 
     hashes = run.metadata.get("excosim.fmus", {})
     attachments = run.metadata.get("excosim.fmu_attachments", {})
@@ -230,24 +227,36 @@ def check_fmus(run: RunFile, *, trust: bool = False) -> dict[str, FmuCheck]:
         name = attachments.get(component)
         if name is None or component not in hashes:
             raise ReplayRefused(f"{run.path} records no FMU for component {component!r}")
+        where = f"{run.path}: component {component}: attachment {name!r}"
+        problem = unsafe_name(name) if isinstance(name, str) else "is not a name"
+        if problem is not None:
+            raise ReplayRefused(f"{where} {problem}; not replayed (not even with --trust)")
         if name not in run.attachments:
             raise ReplayRefused(f"{run.path}: component {component}: attachment {name} is "
                                 "missing from the file")
-        digest = hashlib.sha256(run.attachments[name]).hexdigest()
+        data = run.attachments[name]
+        if len(data) > LIMITS.max_total_bytes:
+            raise ReplayRefused(f"{where} holds {len(data)} bytes, more than the "
+                                f"{LIMITS.max_total_bytes} allowed; not replayed")
+        digest = hashlib.sha256(data).hexdigest()
         if digest != hashes[component]:
             raise ReplayRefused(
                 f"{run.path}: component {component}: attachment {name} has sha256 "
                 f"{digest[:SHORT_HASH]}, the file's metadata records "
                 f"{str(hashes[component])[:SHORT_HASH]}: the file was altered after it was "
                 "written; not replayed (not even with --trust)")
-        recorded[component] = (name, digest)
+        try:
+            content = content_hash(data, where)
+        except UnsafeArchive as error:
+            raise ReplayRefused(f"{error} (not even with --trust)") from None
+        recorded[component] = (name, digest, content)
     try:
-        local = _local_hashes()
+        local = fmu_builder.local_content_hashes()
     except fmu_builder.BuildError:
         if not trust:
             raise
         local = {}
-    untrusted = [c for c, (_, digest) in recorded.items() if digest not in local]
+    untrusted = [c for c, (_, _, content) in recorded.items() if content not in local]
     if untrusted and not trust:
         which = ", ".join(f"{c} ({recorded[c][0]}, sha256 {recorded[c][1][:SHORT_HASH]})"
                           for c in untrusted)
@@ -255,8 +264,8 @@ def check_fmus(run: RunFile, *, trust: bool = False) -> dict[str, FmuCheck]:
         raise ReplayRefused(
             f"{run.path}: {noun} {which}: not an FMU built from this version's sources; an "
             "FMU is native code: check where the file comes from, then --trust runs it anyway")
-    return {c: FmuCheck(name, digest, LOCAL_BUILD if digest in local else TRUSTED)
-            for c, (name, digest) in recorded.items()}
+    return {c: FmuCheck(name, digest, LOCAL_BUILD if content in local else TRUSTED, content)
+            for c, (name, digest, content) in recorded.items()}
 
 
 def _extract(run: RunFile, fmus: dict[str, FmuCheck], folder: Path) -> dict[str, Path]:

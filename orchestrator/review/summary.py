@@ -69,8 +69,9 @@ def summary(run: RunFile) -> dict[str, Any]:
     termination ("periods", "workspace_limit", "error"; None when the run did not finish),
     message (the end record's line), finished, truncated (the file ends early: a killed run),
     periods (the /period records as the campaign wrote them), figures (`run_figures`),
-    versions (package versions the run used), fmus (component -> sha256), roles (component ->
-    {"fmu", "file", "sha256", "parameters", "ports"}: which model filled each role), overrides
+    versions (package versions the run used), fmus (component -> file sha256), roles (component
+    -> {"fmu", "file", "sha256", "content_sha256", "parameters", "ports"}: which model filled
+    each role; content_sha256, the FMU's identity, is absent in older logs), overrides
     (the `--set` items applied to the scenario file).
     """
     description = run.metadata["excosim.run"]
@@ -132,15 +133,17 @@ def roles(run: RunFile) -> dict[str, dict[str, Any]]:
 
 def differing_roles(reviews: list[dict[str, Any]]) -> dict[str, list[str]]:
     """component -> what differs in it between the runs: "FMU (A | B)" (another model: its
-    sha256 differs), "FMU name (same content)", "ports", and the parameters that every run sets
-    but to different values; only roles that differ."""
+    content hash differs, or for logs without one its file sha256), "FMU name (same content)",
+    "ports", and the parameters that every run sets but to different values; only roles that
+    differ."""
     out: dict[str, list[str]] = {}
     names = sorted({role for review in reviews for role in review["roles"]})
     for role in names:
         tables = [review["roles"].get(role, {}) for review in reviews]
         what = []
         names = [Path(str(t.get("fmu", ""))).name for t in tables]
-        if len({t.get("sha256") for t in tables}) > 1:
+        key = "content_sha256" if all(t.get("content_sha256") for t in tables) else "sha256"
+        if len({t.get(key) for t in tables}) > 1:
             what.append(f"FMU ({' | '.join(dict.fromkeys(names))})")
         elif len(set(names)) > 1:
             what.append("FMU name (same content)")

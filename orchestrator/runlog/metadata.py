@@ -81,13 +81,26 @@ def read_fmus(fmus: Mapping[str, str | Path]) -> dict[str, tuple[str, bytes]]:
     return out
 
 
+def fmu_content(data: bytes) -> str:
+    """The content hash of an FMU's bytes (fmus.identity.content_hash), "" if it is not a
+    readable FMU archive (the run log still records its file sha256)."""
+    from fmus.identity import UnsafeArchive, content_hash
+
+    try:
+        return content_hash(data)
+    except UnsafeArchive:
+        return ""
+
+
 def plant_roles(scenario: Mapping, fmus: Mapping[str, tuple[str, bytes]],
                 hashes: Mapping[str, str],
-                derived: Mapping[str, Mapping[str, str]] | None = None) -> dict[str, str]:
-    """role -> JSON {"fmu": as the scenario names it, "file", "sha256", "parameters", "ports",
-    "derived"} of every FMU role: which model filled each role, so that a review can tell
-    substitutions apart; "derived": {output: how} of the outputs the master computed instead
-    of reading them from the FMU ({}: none)."""
+                derived: Mapping[str, Mapping[str, str]] | None = None,
+                contents: Mapping[str, str] | None = None) -> dict[str, str]:
+    """role -> JSON {"fmu": as the scenario names it, "file", "sha256" (of the file),
+    "content_sha256" (fmu_content), "parameters", "ports", "derived"} of every FMU role: which
+    model filled each role, so that a review can tell substitutions apart; "derived":
+    {output: how} of the outputs the master computed instead of reading them from the FMU
+    ({}: none)."""
     plant = scenario.get("plant", {}) if isinstance(scenario, Mapping) else {}
     out = {}
     for role, (file_name, _) in fmus.items():
@@ -95,6 +108,7 @@ def plant_roles(scenario: Mapping, fmus: Mapping[str, tuple[str, bytes]],
         table = table if isinstance(table, Mapping) else {}
         out[role] = to_json({"fmu": table.get("fmu", file_name), "file": file_name,
                              "sha256": hashes[role],
+                             "content_sha256": (contents or {}).get(role, ""),
                              "parameters": table.get("parameters", {}),
                              "ports": table.get("ports", {}),
                              "derived": dict((derived or {}).get(role, {}))}, f"role {role}")
@@ -122,11 +136,14 @@ def write_run_description(writer: McapChunkWriter, *, scenario_json: str, scenar
     writer.add_metadata("excosim.scenario", {"json": scenario_json})
     writer.add_metadata("excosim.versions", versions)
     # One attachment per distinct FMU, named by its file (by FMU name too if two files differ).
-    hashes, names, attached = {}, {}, {}
+    # Attachments are stored by file bytes (each role's bytes must be its attachment's); the
+    # FMUs' identity is their content (excosim.fmu_content), which review and replay compare.
+    hashes, contents, names, attached = {}, {}, {}, {}
     to_attach: list[tuple[str, bytes]] = []
     for name, (file_name, data) in fmus.items():
         digest = hashlib.sha256(data).hexdigest()
         hashes[name] = digest
+        contents[name] = fmu_content(data)
         if digest not in attached:
             attachment = f"fmus/{file_name}"
             if attachment in attached.values():
@@ -135,8 +152,9 @@ def write_run_description(writer: McapChunkWriter, *, scenario_json: str, scenar
             to_attach.append((attachment, data))
         names[name] = attached[digest]
     writer.add_metadata("excosim.fmus", hashes)
+    writer.add_metadata("excosim.fmu_content", contents)
     writer.add_metadata("excosim.roles", plant_roles(json.loads(scenario_json), fmus, hashes,
-                                                     derived))
+                                                     derived, contents))
     writer.add_metadata("excosim.fmu_attachments", names)
     if geometry is not None:
         writer.add_metadata("excosim.geometry", {

@@ -25,7 +25,9 @@ topic               schema (encoding)         one message per
 
 Metadata records: `excosim.run` (format, scenario name, plant kind, target mass, time base,
 frames), `excosim.scenario` (the resolved scenario as JSON), `excosim.versions`, `excosim.fmus`
-(FMU sha256 by name), `excosim.fmu_attachments`, `excosim.geometry` (JSON) and, at close,
+(FMU file sha256 by name), `excosim.fmu_content` (FMU content hash by name:
+fmus.identity.content_hash, what an FMU is whatever its zip), `excosim.roles`,
+`excosim.fmu_attachments`, `excosim.geometry` (JSON) and, at close,
 `excosim.end` (termination, message, periods): a file without it is a run that did not finish.
 Attachments: `scenario.toml` (the scenario file's text; `.json` or `.txt` if it is not TOML, see
 `excosim.run` "scenario_attachment") and `fmus/<file name>` (each distinct FMU once;

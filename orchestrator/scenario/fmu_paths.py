@@ -13,6 +13,7 @@ from __future__ import annotations
 import copy
 import math
 import re
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -47,11 +48,12 @@ def resolve_fmus(plant: dict[str, Any], source: str, base_dir: Path,
             if not path.is_file():
                 raise ScenarioError(source, f"{where}.fmu", f"no such file {table['fmu']!r} and "
                                     f"no model of that name (models: {', '.join(fmus.MODELS)})")
+            _check_archive(path, source, f"{where}.fmu")
             table["fmu"] = str(path.resolve())
         try:
             spec = FmuSpec.from_table(table["fmu"], table["parameters"], table["ports"],
                                       piston_areas=table.get("piston_areas"))
-            description = _description(fmu_path(spec, component))
+            description = model_description(fmu_path(spec, component))
             check_component(component, role, FmuSpec(spec.fmu, {}, spec.ports,
                                                      port_maps=spec.port_maps,
                                                      piston_areas=spec.piston_areas),
@@ -79,13 +81,34 @@ def resolve_fmus(plant: dict[str, Any], source: str, base_dir: Path,
     return plant
 
 
-def _description(path: Path):
-    from fmpy import read_model_description
+def _check_archive(path: Path, source: str, field: str) -> None:
+    """An FMU file from outside is a safe archive before anything reads it (fmus.identity)."""
+    import fmus
 
     try:
-        return read_model_description(str(path))
+        fmus.check_archive(path.read_bytes(), str(path))
+    except OSError as error:
+        raise ScenarioError(source, field, f"cannot read {path}: {error.strerror}") from None
+    except fmus.UnsafeArchive as error:
+        raise ScenarioError(source, field, f"not a readable FMU: {error}") from None
+
+
+def model_description(path: Path):
+    """fmpy's model description of the FMU file at `path`, read once per version of the file;
+    ValueError for a file that is not an FMU."""
+    try:
+        stat = path.stat()
+        return _read_description(str(path), stat.st_mtime_ns, stat.st_ctime_ns, stat.st_size)
     except Exception as error:  # fmpy raises many kinds for a file that is not an FMU
         raise ValueError(f"not a readable FMU: {error}") from None
+
+
+@lru_cache(maxsize=64)
+def _read_description(path: str, *stat):
+    """The model description of the FMU file at `path` as it is (`stat`: its identity now)."""
+    from fmpy import read_model_description
+
+    return read_model_description(path)
 
 
 def _without_component(error: ValueError, component: str) -> str:

@@ -32,6 +32,7 @@ from pydantic import Field, PrivateAttr, StrictInt, StrictStr, ValidationError
 from orchestrator.scenario.errors import ScenarioError
 from orchestrator.scenario.fmu_paths import resolve_fmus
 from orchestrator.scenario.overrides import apply_overrides
+from orchestrator.scenario.sanity import check_first_period, check_values
 from orchestrator.scenario.sections import (
     AdaptationSection,
     LimitsSection,
@@ -43,12 +44,12 @@ from orchestrator.scenario.sections import (
     TrajectorySection,
 )
 from orchestrator.scenario.values import Number, first_error
-from planner.adaptation import AdaptationDefaults, initial_state
+from planner.adaptation import AdaptationDefaults
 from planner.digging_path import PathShape
 from planner.fuzzy import PAPER_CENTRE_FRACTIONS, PAPER_OUTPUTS_M, FuzzyRule
 from planner.period_plan import PeriodPlanner
 from plant_models import presets
-from plant_models.geometry import ExcavatorGeometry, Unreachable
+from plant_models.geometry import ExcavatorGeometry
 from plant_models.model_spec import FmuSpec
 
 PLANT_ROLES = ("boom", "stick", "bucket", "pile")
@@ -245,7 +246,9 @@ def scenario_from_dict(data: Mapping[str, Any], *, source: str = "scenario",
 
     Missing values take the preset's defaults; relative FMU paths resolve against base_dir
     (default: the working folder). With check_fmus, every FMU is found (our models are built)
-    and its parameters and ports are checked against its model description.
+    and its parameters and ports are checked against its model description, and each of our
+    models is asked whether it initialises with its parameters. Values that make no sense
+    together or would make a run hang are refused too (orchestrator.scenario.sanity).
     """
     if not isinstance(data, Mapping):
         raise ScenarioError(source, "", f"expected a table of settings, got {type(data).__name__}")
@@ -263,7 +266,8 @@ def scenario_from_dict(data: Mapping[str, Any], *, source: str = "scenario",
                                 Path(base_dir) if base_dir is not None else Path.cwd(),
                                 _given_parameters(data))
         scenario = _validate({**scenario.to_dict(), "plant": resolved}, source)
-    _check_first_period_reachable(scenario, source)
+    check_values(scenario, source, check_fmus, _given_parameters(data))
+    check_first_period(scenario, source)
     return scenario
 
 
@@ -321,15 +325,3 @@ def _known_keys(loc: list[str]) -> list[str]:
         model = kinds[0]
     return list(getattr(model, "model_fields", {}))
 
-
-def _check_first_period_reachable(scenario: Scenario, source: str) -> None:
-    """Fail early when no period can be dug: D0 out of reach even after the shift by dy_0."""
-    planner = scenario.period_planner()
-    defaults = scenario.adaptation_defaults()
-    if initial_state(defaults, planner.reachable).terminated:
-        result = planner.plan(defaults.y_D0, defaults.z_D0)
-        reason = result.reason if isinstance(result, Unreachable) else "out of reach"
-        raise ScenarioError(
-            source, "adaptation",
-            f"the path through D0 = ({defaults.y_D0:g}, {defaults.z_D0:g}) m is out of reach, "
-            f"also shifted by dy_0_m: {reason}")

@@ -73,10 +73,11 @@ class LimitsSection(Section):
 
 
 class TrajectorySection(Section):
-    """Weights of duration and jerk in the planner's cost (planner.trajectory)."""
+    """Weights of duration and jerk in the planner's cost (planner.trajectory), each in [0, 1]
+    (k_T > 0: without a price on time the plan has no finite optimum)."""
 
-    k_T: Number = Field(gt=0.0)
-    k_J: Number = Field(ge=0.0)
+    k_T: Number = Field(gt=0.0, le=1.0)
+    k_J: Number = Field(ge=0.0, le=1.0)
 
 
 class AdaptationSection(Section):
@@ -89,7 +90,16 @@ class AdaptationSection(Section):
     dy_0_m: Number
     centre_fractions: numbers(3, *_positive, increasing=True) | None = None
     centres_kg: numbers(7, increasing=True) | None = None
-    outputs_m: numbers(7)
+    outputs_m: numbers(7, increasing=True)
+
+    @field_validator("outputs_m")
+    @classmethod
+    def _signs(cls, value: tuple[float, ...]) -> tuple[float, ...]:
+        """r_1..r_3 (too heavy: dig shallower) < 0 < r_5..r_7 (too light: dig deeper)."""
+        if not value[2] < 0.0 < value[4]:
+            raise ValueError(f"r_1..r_3 must be < 0 and r_5..r_7 > 0 (a too heavy bucket digs "
+                             f"shallower, a too light one deeper), got {list(value)}")
+        return value
 
     @model_validator(mode="after")
     def _one_partition(self) -> AdaptationSection:

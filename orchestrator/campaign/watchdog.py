@@ -1,0 +1,86 @@
+"""A watchdog on FMU steps that costs the step loop nothing.
+
+An FMU step is native code: Python cannot interrupt it, and one that never returns hangs the run
+with no word. The watchdog is a daemon thread that looks at the main thread's innermost Python
+frame every `poll_s` (sys._current_frames): while an FMU steps, that frame is
+fmus.runs.FastSlave.step (ctypes releases the GIL during the call, so the thread runs). A step
+is identified by its instance and its start time `t` (each instance's time only grows), so the
+same (instance, t) seen for `timeout_s` is one step that did not return. Nothing is added to the
+step loop itself: no counter, no clock read, no lock; the thread takes the GIL for some
+microseconds per poll.
+
+What then: the stuck call cannot be undone, so the owner decides (`on_hang(message)`, called in
+the watchdog thread): the campaign writes the log's end record (the main thread is inside the
+plant's period, never inside the log) and hands over to its caller; `excosim run` then prints
+the line and ends the process with exit status 1 (os._exit: the stuck thread never returns).
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+from collections.abc import Callable
+
+_STEP_CODE = None  # fmus.runs.FastSlave.step.__code__, looked up on first use
+
+
+def _step_code():
+    global _STEP_CODE
+    if _STEP_CODE is None:
+        from fmus.runs import FastSlave
+
+        _STEP_CODE = FastSlave.step.__code__
+    return _STEP_CODE
+
+
+def stuck_step(frame) -> tuple[int, float, str] | None:
+    """(id of the instance, step start time t (s), "instance (model)") when `frame` is an FMU
+    step (FastSlave.step), else None."""
+    if frame is None or frame.f_code is not _step_code():
+        return None
+    local = frame.f_locals  # the main thread is in C with the GIL released: a stable snapshot
+    slave, t = local.get("self"), local.get("t")
+    if slave is None or not isinstance(t, int | float):
+        return None
+    instance = getattr(getattr(slave, "slave", None), "instanceName", "FMU")
+    model = getattr(getattr(slave, "description", None), "modelName", "?")
+    return id(slave), float(t), f"{instance} ({model})"
+
+
+class StepWatchdog:
+    """Calls `on_hang(message)` once when one FMU step has not returned for `timeout_s`."""
+
+    def __init__(self, timeout_s: float, on_hang: Callable[[str], None],
+                 poll_s: float | None = None) -> None:
+        if not timeout_s > 0.0:
+            raise ValueError(f"step timeout must be > 0 s, got {timeout_s!r}")
+        self.timeout_s = float(timeout_s)
+        self.poll_s = float(poll_s) if poll_s is not None else min(1.0, self.timeout_s / 4.0)
+        self._on_hang = on_hang
+        self._main = threading.main_thread().ident
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._watch, name="excosim-step-watchdog",
+                                        daemon=True)
+
+    def __enter__(self) -> StepWatchdog:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._stop.set()
+
+    def _watch(self) -> None:
+        seen, since = None, 0.0
+        while not self._stop.wait(self.poll_s):
+            step = stuck_step(sys._current_frames().get(self._main))
+            key = None if step is None else step[:2]
+            now = time.monotonic()
+            if key is None or key != seen:
+                seen, since = key, now
+                continue
+            if now - since >= self.timeout_s and not self._stop.is_set():
+                _, t, who = step
+                self._on_hang(f"FMU {who} did not return from its step at t = {t:.6g} s "
+                              f"within {self.timeout_s:g} s")
+                return

@@ -1,0 +1,85 @@
+"""The watchdog on FMU steps (orchestrator/campaign/watchdog.py): a step that never returns ends
+`excosim run` with the FMU named, in one line, exit status 1, the log closed with the reason and
+the extracted FMUs removed; the step loop itself carries no extra work."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import fmus
+from fmus.builder import MODELS_DIR
+from fmus.runs import FastSlave
+from orchestrator.campaign.watchdog import StepWatchdog, stuck_step
+from orchestrator.runlog import read_run
+
+ROOT = Path(__file__).resolve().parent.parent
+PAPER = ROOT / "scenarios" / "paper-2020.toml"
+MAIN = "from orchestrator.cli.app import main; main()"
+
+
+@pytest.fixture(scope="module")
+def hanging_cylinder(tmp_path_factory) -> Path:
+    """Our cylinder, but its step spins forever from t = 0.5 s on."""
+    folder = tmp_path_factory.mktemp("hang")
+    model = Path(shutil.copytree(MODELS_DIR / "HydraulicCylinder", folder / "HydraulicCylinder"))
+    source = (model / "model.c").read_text()
+    marker = "    (void)t;\n"
+    assert source.count(marker) == 1
+    (model / "model.c").write_text(source.replace(
+        marker, "    if (t >= 0.5) {\n        volatile int spin = 1;\n        while (spin) {\n"
+        "        }\n    }\n"))
+    old = os.environ.get("EXCOSIM_FMU_DIR")
+    os.environ["EXCOSIM_FMU_DIR"] = str(folder / "built")
+    try:
+        built = fmus.build_model(model)
+    finally:
+        if old is None:
+            del os.environ["EXCOSIM_FMU_DIR"]
+        else:
+            os.environ["EXCOSIM_FMU_DIR"] = old
+    return shutil.copyfile(built, folder / "Hanging.fmu")
+
+
+def test_a_step_that_never_returns_ends_the_run_with_the_fmu_named(tmp_path, hanging_cylinder):
+    temporary = tmp_path / "tmp"
+    temporary.mkdir()
+    started = time.monotonic()
+    done = subprocess.run(
+        [sys.executable, "-c", MAIN, "run", str(PAPER), "--periods", "2", "-o", "run.mcap",
+         "--trust", "--step-timeout", "2", "--set", f"plant.boom.fmu={hanging_cylinder}"],
+        capture_output=True, text=True, cwd=tmp_path, timeout=180,
+        env={**os.environ, "PYTHONPATH": str(ROOT), "TMPDIR": str(temporary)})
+    assert done.returncode == 1 and done.stdout == ""
+    lines = done.stderr.splitlines()
+    assert len(lines) == 2 and lines[0].startswith("excosim: --trust: plant.boom.fmu runs")
+    assert lines[1].startswith("excosim: run stopped: period 1: FMU boom (HydraulicCylinder) "
+                               "did not return from its step at t = 0.5")
+    assert lines[1].endswith("within 2 s (log run.mcap is readable up to period 0)")
+    assert time.monotonic() - started < 120
+    run = read_run(tmp_path / "run.mcap")
+    assert run.finished and run.termination == "error" and run.periods == []
+    assert "FMU boom (HydraulicCylinder) did not return" in run.termination_message
+    assert list(temporary.iterdir()) == []  # the extracted FMUs are removed
+
+
+def test_steps_that_keep_returning_are_never_reported():
+    """A busy step loop is sampled inside FastSlave.step again and again, at other times t:
+    the watchdog stays quiet (and a frame that is no step is none)."""
+    reports: list[str] = []
+    with FastSlave(fmus.build("HydraulicCylinder"), ["u"], ["x"], instance_name="stick") as ok:
+        with StepWatchdog(0.2, reports.append, poll_s=0.01):
+            deadline, t = time.monotonic() + 1.0, 0.0
+            while time.monotonic() < deadline:
+                ok.step(t, 1e-3, np.array([0.1]))
+                t += 1e-3
+    assert reports == [] and stuck_step(sys._getframe()) is None
+    with pytest.raises(ValueError, match="step timeout must be > 0 s"):
+        StepWatchdog(0.0, reports.append)
