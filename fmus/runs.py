@@ -67,6 +67,9 @@ def _typed_start_values(description, start_values: Mapping[str, float]) -> dict:
     return typed
 
 
+STEP_CODES: set = set()  # code objects of FastSlave's step functions (one per FMI version)
+
+
 class FastSlave:
     """One FMU instance driven through fmpy's raw ctypes functions with pre-allocated buffers.
 
@@ -142,6 +145,10 @@ class FastSlave:
         self._get = functools.partial(get_real, component, vr_out, n_out, out_ptr, *counts_out)
         set_inputs, get_outputs, out, inputs = self._set, self._get, self._out, self.inputs
         set_name, get_name, step_name = names
+        # Names the instance in step errors, and for the step watchdog
+        # (orchestrator.campaign.watchdog), which finds a stuck step by its code object
+        # (STEP_CODES) and reads `label` and `t` from its frame.
+        label = f"{self.slave.instanceName} ({self.description.modelName})"
         if version == 2:
             do_step.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int]
             self._do_step = functools.partial(do_step, component)  # (t, h, 1): bench/
@@ -150,11 +157,11 @@ class FastSlave:
                 if values is not None:
                     inputs[:] = values
                 if set_inputs() > 1:
-                    raise RuntimeError(f"{set_name} failed at t = {t}")
+                    raise RuntimeError(f"{label}: {set_name} failed at t = {t}")
                 if do_step(component, t, h, 1) > 1:
-                    raise RuntimeError(f"{step_name} failed at t = {t}")
+                    raise RuntimeError(f"{label}: {step_name} failed at t = {t}")
                 if get_outputs() > 1:
-                    raise RuntimeError(f"{get_name} failed")
+                    raise RuntimeError(f"{label}: {get_name} failed at t = {t}")
                 return out
         else:
             # No argtypes: ctypes then passes the pre-built objects as they are (the doubles
@@ -163,22 +170,22 @@ class FastSlave:
             terminate = ctypes.c_bool(False)
             event, stop = ctypes.byref(ctypes.c_bool(False)), ctypes.byref(terminate)
             early, last = ctypes.byref(ctypes.c_bool(False)), ctypes.byref(ctypes.c_double(0.0))
-            model = self.description.modelName
 
             def step(t: float, h: float, values: np.ndarray | None = None) -> np.ndarray:
                 if values is not None:
                     inputs[:] = values
                 if set_inputs() > 1:
-                    raise RuntimeError(f"{set_name} failed at t = {t}")
+                    raise RuntimeError(f"{label}: {set_name} failed at t = {t}")
                 if do_step(component, double(t), double(h), no_set_prior, event, stop, early,
                            last) > 1:
-                    raise RuntimeError(f"{step_name} failed at t = {t}")
+                    raise RuntimeError(f"{label}: {step_name} failed at t = {t}")
                 if terminate.value:
-                    raise RuntimeError(f"{model} asked to terminate the simulation at t = {t}")
+                    raise RuntimeError(f"{label} asked to terminate the simulation at t = {t}")
                 if get_outputs() > 1:
-                    raise RuntimeError(f"{get_name} failed")
+                    raise RuntimeError(f"{label}: {get_name} failed at t = {t}")
                 return out
 
+        STEP_CODES.add(step.__code__)
         self.step = step
         """step(t, h, values=None): set the inputs to `values` (or use `self.inputs` as it is),
         step from t (s) by h (s), return the outputs (the internal buffer)."""

@@ -20,10 +20,12 @@ from orchestrator.scenario.model import scenario_from_dict
 def test_a_master_digs_with_the_standalone_emulator(capsys):
     channel = private_virtual_channel()
     answers: list = []
+    # Loaded first: a scenario load probes the FMUs and designs the servos (seconds of Python,
+    # the GIL held), which must not run beside the real-time stream below.
+    scenario = scenario_from_dict({"name": "lab-preset", "machine": {"preset": "lab"}})
     device = threading.Thread(target=lambda: answers.append(lab.emulate(
         "virtual", channel, 500_000, None, 2.0, 10.0, [], [])))
     device.start()
-    scenario = scenario_from_dict({"name": "lab-preset", "machine": {"preset": "lab"}})
     # The device needs a few seconds to start (its FMUs and servo design): a long connect time.
     settings = LabSettings(channel=channel, time_scale=1.0, command_timeout_s=0.08,
                            feedback_timeout_s=0.12, heartbeat_timeout_s=1.0,

@@ -36,7 +36,7 @@ def renamed_cylinder(tmp_path_factory):
     with pytest.MonkeyPatch.context() as patch:
         patch.setenv("EXCOSIM_FMU_DIR", str(root / "fmu"))
         path = fmus.build_model(folder)
-    assert path.parent == root / "fmu"
+    assert path.parent.parent == root / "fmu"  # <dir>/<Model>-<key>/<Model>.fmu
     return path
 
 

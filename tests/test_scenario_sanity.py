@@ -29,10 +29,10 @@ PAPER = ROOT / "scenarios" / "paper-2020.toml"
 
 
 @pytest.mark.parametrize(("overrides", "field", "reason"), [
-    (["target_mass_kg=45"], "target_mass_kg",
-     "45 kg is more than the bucket holds: density x capacity = 1600 kg/m^3 x 0.026456 m^3 = "
-     "42.33 kg"),
-    (["plant.pile.parameters.density=1000"], "target_mass_kg", "= 26.46 kg"),
+    (["target_mass_kg=95"], "target_mass_kg",
+     "95 kg is more than the bucket holds: density x capacity = 1600 kg/m^3 x 0.056617 m^3 = "
+     "90.59 kg"),
+    (["plant.pile.parameters.density=500"], "target_mass_kg", "= 28.31 kg"),
     (["adaptation.z_D0_m=0.05"], "adaptation.z_D0_m",
      "0.05 m is not below the ground at y_D0_m = -9 m (z = 0 m)"),
     (["plant.pile.parameters.heap_height=0.5", "plant.pile.parameters.heap_center_y=-9",
@@ -120,10 +120,10 @@ def _declared(model: str) -> dict:
 def test_on_the_command_line_it_is_one_line_exit_2_and_no_log(tmp_path):
     done = subprocess.run(
         [sys.executable, "-c", "from orchestrator.cli.app import main; main()", "run",
-         str(PAPER), "--set", "target_mass_kg=60"], capture_output=True, text=True,
+         str(PAPER), "--set", "target_mass_kg=95"], capture_output=True, text=True,
         cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=120)
     assert done.returncode == 2 and done.stdout == ""
-    assert done.stderr.startswith("excosim: paper-2020.toml: target_mass_kg: 60 kg is more "
+    assert done.stderr.startswith("excosim: paper-2020.toml: target_mass_kg: 95 kg is more "
                                   "than the bucket holds") and done.stderr.count("\n") == 1
     assert list(tmp_path.iterdir()) == []  # no runs/ folder, no log
     assert math.isfinite(MAX_PERIOD_S)

@@ -2,8 +2,8 @@
 
 An FMU step is native code: Python cannot interrupt it, and one that never returns hangs the run
 with no word. The watchdog is a daemon thread that looks at the main thread's innermost Python
-frame every `poll_s` (sys._current_frames): while an FMU steps, that frame is
-fmus.runs.FastSlave.step (ctypes releases the GIL during the call, so the thread runs). A step
+frame every `poll_s` (sys._current_frames): while an FMU steps, that frame is a FastSlave's step
+function (fmus.runs.STEP_CODES; ctypes releases the GIL during the call, so the thread runs). A step
 is identified by its instance and its start time `t` (each instance's time only grows), so the
 same (instance, t) seen for `timeout_s` is one step that did not return. Nothing is added to the
 step loop itself: no counter, no clock read, no lock; the thread takes the GIL for some
@@ -22,30 +22,19 @@ import threading
 import time
 from collections.abc import Callable
 
-_STEP_CODE = None  # fmus.runs.FastSlave.step.__code__, looked up on first use
-
-
-def _step_code():
-    global _STEP_CODE
-    if _STEP_CODE is None:
-        from fmus.runs import FastSlave
-
-        _STEP_CODE = FastSlave.step.__code__
-    return _STEP_CODE
-
 
 def stuck_step(frame) -> tuple[int, float, str] | None:
     """(id of the instance, step start time t (s), "instance (model)") when `frame` is an FMU
-    step (FastSlave.step), else None."""
-    if frame is None or frame.f_code is not _step_code():
+    step (a FastSlave's step function, fmus.runs.STEP_CODES), else None."""
+    from fmus.runs import STEP_CODES
+
+    if frame is None or frame.f_code not in STEP_CODES:
         return None
     local = frame.f_locals  # the main thread is in C with the GIL released: a stable snapshot
-    slave, t = local.get("self"), local.get("t")
-    if slave is None or not isinstance(t, int | float):
+    component, t, label = local.get("component"), local.get("t"), local.get("label")
+    if component is None or not isinstance(t, int | float):
         return None
-    instance = getattr(getattr(slave, "slave", None), "instanceName", "FMU")
-    model = getattr(getattr(slave, "description", None), "modelName", "?")
-    return id(slave), float(t), f"{instance} ({model})"
+    return id(component), float(t), str(label)
 
 
 class StepWatchdog:

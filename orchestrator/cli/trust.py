@@ -3,8 +3,8 @@
 
 An FMU is native code that runs inside this process. Our models, named by name, are built here
 from this tree's sources and always run. An FMU file a scenario names runs without --trust only
-when its content (fmus.identity.content_hash) is that of one of our builds (a copy of our FMU,
-say); any other file is refused with its sha256, and with --trust it runs and the command says
+when its content (fmus.identity.content_hash) is that of one of our builds, FMI 2.0 or 3.0 (a
+copy of our FMU, say); any other file is refused with its sha256, and with --trust it runs and the command says
 so on stderr, with the file's full sha256 (which the run log records too).
 """
 
@@ -40,11 +40,16 @@ def foreign_fmus(scenario: Any) -> list[ForeignFmu]:
     if not files:
         return []
     ours = fmus.local_content_hashes()
+    fmi3_checked = False
     out = []
     for role, name in files.items():
         path = Path(name)
         data = path.read_bytes()
-        if content_hash(data, f"plant.{role}.fmu: {path}") not in ours:
+        digest = content_hash(data, f"plant.{role}.fmu: {path}")
+        if digest not in ours and not fmi3_checked:  # our FMI 3.0 builds are ours too
+            ours = {**ours, **fmus.local_content_hashes(3)}
+            fmi3_checked = True
+        if digest not in ours:
             out.append(ForeignFmu(role, path, hashlib.sha256(data).hexdigest()))
     return out
 

@@ -14,12 +14,42 @@ from __future__ import annotations
 import contextlib
 import io
 import shutil
+import sys
 import tempfile
-from collections.abc import Mapping
+import threading
+from collections.abc import Iterator, Mapping
 from functools import lru_cache
 from pathlib import Path
 
 _CONVERT = {"Real": float, "Integer": int, "Boolean": bool}
+_LOCK = threading.Lock()  # one probe at a time: each swaps sys.stdout and must restore it
+
+
+class _ThisThreadsPrints(io.TextIOBase):
+    """sys.stdout while a probe runs: the probing thread's prints (fmpy's logger) go to
+    `buffer`, every other thread's to the stream that was there (an emulated device printing
+    beside a scenario load must not lose its lines to the probe)."""
+
+    def __init__(self, stream, buffer: io.StringIO) -> None:
+        self._stream, self._buffer, self._thread = stream, buffer, threading.get_ident()
+
+    def write(self, text: str) -> int:
+        target = self._buffer if threading.get_ident() == self._thread else self._stream
+        return target.write(text)
+
+    def flush(self) -> None:
+        self._stream.flush()
+
+
+@contextlib.contextmanager
+def _capture_this_thread(buffer: io.StringIO) -> Iterator[None]:
+    with _LOCK:
+        stream = sys.stdout
+        sys.stdout = _ThisThreadsPrints(stream, buffer)
+        try:
+            yield
+        finally:
+            sys.stdout = stream
 
 
 def initialization_error(path: Path, start_values: Mapping[str, bool | int | float]
@@ -45,7 +75,7 @@ def _probe(path: str, mtime_ns: int, size: int, start_values: tuple) -> str | No
     try:
         # fmpy's own logger prints "[ERROR] <message>" (its native proxy formats the FMU's
         # variadic message; a logger of our own would have to replace fmpy's process-wide one).
-        with contextlib.redirect_stdout(printed):
+        with _capture_this_thread(printed):
             try:
                 unzip = extract(path, unzipdir=folder)
                 slave = FMU2Slave(guid=description.guid, unzipDirectory=unzip,
