@@ -4,8 +4,8 @@
 An FMU is native code that runs inside this process. Our models, named by name, are built here
 from this tree's sources and always run. An FMU file a scenario names runs without --trust only
 when its content (fmus.identity.content_hash) is that of one of our builds, FMI 2.0 or 3.0 (a
-copy of our FMU, say); any other file is refused with its sha256, and with --trust it runs and the command says
-so on stderr, with the file's full sha256 (which the run log records too).
+copy of our FMU, say); any other file is refused with its sha256, and with --trust it runs
+and the command says so on stderr, with the file's full sha256 (which the run log records too).
 """
 
 from __future__ import annotations
