@@ -116,6 +116,12 @@ def run_log(tmp_path_factory) -> RunLogFacts:
     path = tmp_path_factory.mktemp("foxglove") / "run.mcap"
     result = run_campaign(load_scenario(SCENARIO, ["periods=2"]), log_path=path)
     assert result.termination == "periods", result
+    return run_log_facts(path)
+
+
+def run_log_facts(path: Path) -> RunLogFacts:
+    """What the layout may refer to in the run log at `path` (test_lab_log_tools.py checks a
+    lab run's log with it too)."""
     with open(path, "rb") as stream:
         reader = make_reader(stream, decoder_factories=[DecoderFactory()])
         summary = reader.get_summary()

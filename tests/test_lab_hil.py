@@ -12,40 +12,31 @@ interpreter lock with the driver, and at a time scale of 3 it fell behind its fe
 on a busy machine. The run widens the link's timeouts within the protocol's rules (50 Hz, 10 and
 12 frames, a 1 s heartbeat consumer time); the reactions at tight timeouts are
 test_lab_faults.py's, the stream's figures bench/lab_bus.py's. The simulated run comes
-first (its own test).
+first (its own test). Both runs are tests/conftest.py's session fixtures, shared with
+test_lab_log_tools.py.
 """
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
+from lab_runs import LAB_PERIODS
 from typer.testing import CliRunner
 
-from orchestrator.campaign import run_campaign
 from orchestrator.cli.app import app
 from orchestrator.runlog import read_run
-from orchestrator.scenario import load_scenario
 
-LAB = Path(__file__).resolve().parent.parent / "scenarios" / "lab.toml"
-PERIODS = 3
-LINK = ("plant.lab.time_scale=1", "plant.lab.stream_rate_hz=50",
-        "plant.lab.command_timeout_s=0.2", "plant.lab.feedback_timeout_s=0.24",
-        "plant.lab.heartbeat_timeout_s=1.0")
+PERIODS = LAB_PERIODS
 
 
 @pytest.fixture(scope="module")
-def simulated():
-    return run_campaign(load_scenario(LAB, [f"periods={PERIODS}"]))
+def simulated(lab_simulated_run):
+    return lab_simulated_run[0]
 
 
 @pytest.fixture(scope="module")
-def hil(tmp_path_factory):
-    path = tmp_path_factory.mktemp("hil") / "lab.mcap"
-    done = CliRunner().invoke(app, ["run", str(LAB), "--plant", "lab", "--emulate",
-                                    "--periods", str(PERIODS), "-o", str(path), "--json",
-                                    *(f"--set={item}" for item in LINK)])
-    return done, path
+def hil(lab_hil_run):
+    return lab_hil_run
 
 
 def test_the_simulated_plant_digs_the_reference_periods(simulated):

@@ -9,10 +9,8 @@ the simulated lab machine (the `lab` preset: 0.832 m high, 0.414 m digging depth
 holds the 10 kg maximum load, 20 bar), and Table 1's limits in every period. The campaign runs
 once (about 5 s) and is shared by the tests.
 
-Not reproduced: Figures 13 and 14 give joint angles (the bucket opening to -82 deg with boom and
-stick still, the boom from -72 to -35 deg, the stick at -25 deg in period 4) in the lab
-machine's own angle convention, which the paper does not define; the planner's four-stage path
-moves boom and stick together in stage 1.
+Figures 13 and 14 (the joint angles of periods 2 and 4): test_lab_figures_13_14.py, which says
+what of them this scenario reproduces and why not the rest.
 """
 
 import math
