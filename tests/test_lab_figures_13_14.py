@@ -66,8 +66,8 @@ Tolerances: planned via-points within 0.01 deg (the scenario gives the start pos
 angle, and this module the convention's zeros, to 0.01 deg); measured angles at the via-points
 are checked within 2 deg: the 20 bar bucket lags its reference by up to 1.3 deg as it closes
 through the sand (the soil force acts on the whole 0.24 m edge), 2 deg is the plant's start
-tolerance for the next period, and the motions Figures 13 and 14 tell apart are 20-150 deg; "about -82" is
-checked within 2 deg (the paper's own rounding and a reading of its figure).
+tolerance for the next period, and the motions Figures 13 and 14 tell apart are 20-150 deg;
+"about -82" is checked within 2 deg (the paper's own rounding and a reading of its figure).
 """
 
 import math
