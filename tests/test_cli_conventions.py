@@ -135,8 +135,11 @@ def test_every_mistake_is_one_line_exit_2_and_writes_nothing(tmp_path, args, exp
 # `excosim` with each finished period said on stderr, then held for up to a minute: a signal
 # sent when the line arrives reaches the campaign inside period 2, however loaded the machine
 # (no race with a run that finishes first, no polling of the log).
+# A child started from a non-interactive shell's background job inherits SIGINT ignored, and
+# Python then keeps it ignored: the child restores the default, as an interactive terminal has.
 PAUSED_MAIN = """
-import sys, time
+import signal, sys, time
+signal.signal(signal.SIGINT, signal.default_int_handler)
 import orchestrator.campaign as campaign
 real = campaign.run_campaign
 def run_campaign(scenario, *, progress=None, **kwargs):
