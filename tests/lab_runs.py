@@ -7,8 +7,8 @@ from pathlib import Path
 LAB_SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "lab.toml"
 LAB_PERIODS = 3
 # The emulated run's link, widened within the protocol's rules (test_lab_hil.py says why).
-LAB_LINK = ("plant.lab.time_scale=1", "plant.lab.stream_rate_hz=50",
-            "plant.lab.command_timeout_s=0.2", "plant.lab.feedback_timeout_s=0.24",
+LAB_LINK = ("plant.lab.time_scale=1", "plant.lab.stream_rate_hz=25",
+            "plant.lab.command_timeout_s=0.4", "plant.lab.feedback_timeout_s=0.48",
             "plant.lab.heartbeat_timeout_s=1.0")
 
 
