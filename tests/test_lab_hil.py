@@ -11,8 +11,9 @@ times faster than real time on one free core, but the emulated device shares the
 interpreter lock with the driver, and at a time scale of 3 it fell behind its feedback timeout
 on a busy machine; late in a full test session (a large heap: a collection can pause the
 interpreter) it once fell 0.25 s behind at 50 Hz. The run widens the link's timeouts within the
-protocol's rules (25 Hz, 10 and 12 frames: 0.4 and 0.48 s, a 1 s heartbeat consumer time); the reactions at tight timeouts are
-test_lab_faults.py's, the stream's figures bench/lab_bus.py's. The simulated run comes
+protocol's rules (25 Hz, 10 and 12 frames: 0.4 and 0.48 s, a 1 s heartbeat consumer time);
+the reactions at tight timeouts are test_lab_faults.py's, the stream's figures
+bench/lab_bus.py's. The simulated run comes
 first (its own test). Both runs are tests/conftest.py's session fixtures, shared with
 test_lab_log_tools.py.
 """
