@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cylinder_start import start_parameters
 from fmpy import read_model_description
 
 import fmus
@@ -30,12 +31,7 @@ def fmu():
 
 @pytest.fixture(scope="module")
 def par(fmu):
-    """Start values of the parameters, plus the piston and annulus areas."""
-    values = {v.name: float(v.start) for v in read_model_description(str(fmu)).modelVariables
-              if v.causality == "parameter"}
-    values["A_A"] = math.pi / 4 * values["bore"] ** 2
-    values["A_B"] = math.pi / 4 * (values["bore"] ** 2 - values["rod"] ** 2)
-    return values
+    return start_parameters(fmu)
 
 
 def run(fmu, u, F_ext, step=H, **start):

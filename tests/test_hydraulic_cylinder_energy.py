@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 import pytest
-from fmpy import read_model_description
+from cylinder_start import start_parameters
 
 import fmus
 from fmus.runs import run_fmpy
@@ -35,11 +35,7 @@ def fmu():
 
 @pytest.fixture(scope="module")
 def par(fmu):
-    values = {v.name: float(v.start) for v in read_model_description(str(fmu)).modelVariables
-              if v.causality == "parameter"}
-    values["A_A"] = math.pi / 4 * values["bore"] ** 2
-    values["A_B"] = math.pi / 4 * (values["bore"] ** 2 - values["rod"] ** 2)
-    return values
+    return start_parameters(fmu)
 
 
 def residual(r):

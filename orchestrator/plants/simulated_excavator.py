@@ -40,6 +40,7 @@ from orchestrator.plants.arm_dynamics import ArmInertia
 from orchestrator.plants.identify import CylinderIdentification, identify_cylinder
 from orchestrator.plants.master import Master, check_component, fmu_path, port_conversions
 from plant_models.cylinder_model import CylinderModel
+from plant_models.hydraulics import reflected_mass_kg
 from plant_models.linear_cylinder import LinearCylinderModel
 from plant_models.linear_servo import LinearJointServo, LinearServoDesign, design_linear_servo
 from plant_models.linkage import JOINT_NAMES
@@ -137,9 +138,9 @@ class SimulatedExcavator:
         mid-stroke): the load inertia each servo is designed for."""
         strokes = self.config.design_strokes_m or tuple(
             0.5 * table.stroke_m for table in self.coupling.tables)
-        joints = [self.coupling.joint_state(i, s) for i, s in enumerate(strokes)]
-        m00, m11, m22 = self.inertia.at(*(q for q, _ in joints), 0.0, 0.0, 0.0, 0.0)[:3]
-        return tuple(m / (r * r) for m, (_, r) in zip((m00, m11, m22), joints, strict=True))
+        joints = [self.coupling.joint_state(i, s)[0] for i, s in enumerate(strokes)]
+        return tuple(reflected_mass_kg(self.config.geometry, joint, joints)
+                     for joint in JOINT_NAMES)
 
     # ---- life cycle ----------------------------------------------------------------------------
 
