@@ -399,6 +399,25 @@ def test_heap_mass_is_the_integral_of_its_profile(make_pile, height, half_width)
         assert pile.profile() == pytest.approx(p["z_surface0"] + means, abs=1e-12)
 
 
+@pytest.mark.parametrize("slope_deg", [-20.0, 12.0])
+def test_inclined_ground_is_the_line_through_the_crest_and_its_mass_the_trapezoid(make_pile,
+                                                                                  slope_deg):
+    """An inclined initial ground (rising toward +y for a positive slope) through z_surface0 at
+    heap_center_y, below the repose angle so nothing slumps: its cells are the line's values at
+    their centres, its mass the trapezoid's area times density and slice width."""
+    crest = -8.0
+    pile = make_pile(ground_slope=slope_deg * DEG, heap_center_y=crest, heap_height=0.0)
+    p = pile.p
+    grade = math.tan(slope_deg * DEG)
+    centres = p["y_min"] + (np.arange(pile.n_cells) + 0.5) * pile.dy
+    assert pile.profile() == pytest.approx(p["z_surface0"] + grade * (centres - crest), abs=1e-12)
+    mid = 0.5 * (p["y_min"] + p["y_max"])
+    height = p["z_surface0"] + grade * (mid - crest) - p["z_floor"]  # trapezoid's mean height
+    expected = p["density"] * p["slice_width"] * height * (p["y_max"] - p["y_min"])
+    assert pile.outputs()["pile_mass"] == pytest.approx(expected, rel=1e-12)
+    assert pile.max_slope() == pytest.approx(abs(slope_deg) * DEG, abs=1e-9)
+
+
 def test_surface_at_tip_interpolates_between_cell_centres(make_pile):
     pile = make_pile(tip=(-9.0, 3.0), heap_height=0.8, heap_center_y=-9.0, heap_half_width=1.5)
     h = pile.profile()
@@ -413,7 +432,8 @@ def test_surface_at_tip_interpolates_between_cell_centres(make_pile):
 
 @pytest.mark.parametrize(("name", "value"), [
     ("y_max", -14.0), ("repose_angle", 0.0), ("tool_friction_angle", 40 * DEG),
-    ("capacity", -0.1), ("density", 0.0), ("heap_half_width", 0.0)])
+    ("capacity", -0.1), ("density", 0.0), ("heap_half_width", 0.0),
+    ("ground_slope", 60 * DEG), ("ground_slope", -0.62)])
 def test_bad_parameters_fail_initialization_naming_the_parameter(built, capsys, name, value):
     description, unzip = built
     vr = {v.name: v.valueReference for v in description.modelVariables}

@@ -172,10 +172,13 @@ def rk4_substeps(values: dict[str, float], step_s: float) -> int | None:
 
 
 def _ground_at(pile: dict[str, float], y: float) -> float:
-    """The pile's initial surface at y (fmus/shared/pile/profile.c: a triangular heap)."""
+    """The pile's initial surface at y (fmus/shared/pile/profile.c: an inclined ground line
+    through z_surface0 at heap_center_y plus a triangular heap)."""
     ground = float(pile["z_surface0"])
-    height, centre, half = (pile.get(k) for k in ("heap_height", "heap_center_y",
-                                                   "heap_half_width"))
+    height, centre, half, slope = (pile.get(k) for k in ("heap_height", "heap_center_y",
+                                                          "heap_half_width", "ground_slope"))
+    if isinstance(slope, int | float) and isinstance(centre, int | float) and abs(slope) < 1.5:
+        ground += math.tan(slope) * (y - centre)
     if all(isinstance(x, int | float) for x in (height, centre, half)) and height > 0 < half:
         ground += height * max(0.0, 1.0 - abs(y - centre) / half)
     return ground

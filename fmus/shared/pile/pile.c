@@ -64,6 +64,14 @@ static Grid grid_of(const double *v)
     return g;
 }
 
+/* The initial ground's lowest height over the grid (the heap only adds to it). */
+static double lowest_ground(const double *v)
+{
+    const double grade = tan(v[VR_ground_slope]);
+    const double end = grade > 0.0 ? v[VR_y_min] : v[VR_y_max];
+    return v[VR_z_surface0] + grade * (end - v[VR_heap_center_y]);
+}
+
 static const char *check_parameters(const double *v)
 {
     if (!(v[VR_n_cells] == N_h)) return "n_cells must equal the number of profile cells h[]";
@@ -85,6 +93,10 @@ static const char *check_parameters(const double *v)
     if (!(v[VR_capacity] > 0.0 && isfinite(v[VR_capacity]))) return "capacity must be > 0 m3";
     if (!(v[VR_repose_angle] > 0.0 && v[VR_repose_angle] < 0.5 * PI))
         return "repose_angle must lie in (0, pi/2) rad";
+    if (!(fabs(v[VR_ground_slope]) <= v[VR_repose_angle]))
+        return "ground_slope must lie within +-repose_angle rad (a steeper ground would slump)";
+    if (!(lowest_ground(v) > v[VR_z_floor]))
+        return "the inclined ground must stay above z_floor over the whole grid";
     if (!(v[VR_mobilization_length] > 0.0 && isfinite(v[VR_mobilization_length])))
         return "mobilization_length must be > 0 m";
     return pile_check_resistance(v);
@@ -185,8 +197,8 @@ int model_initialize(double *v, void *state, const char **error)
         return 1;
     }
     const Grid g = grid_of(v);
-    profile_init(&s->profile, &g, v[VR_z_surface0], v[VR_heap_height], v[VR_heap_center_y],
-                 v[VR_heap_half_width]);
+    profile_init(&s->profile, &g, v[VR_z_surface0], tan(v[VR_ground_slope]), v[VR_heap_height],
+                 v[VR_heap_center_y], v[VR_heap_half_width]);
     /* A heap steeper than the repose angle settles before the first step. */
     s->settled = 0;
     s->held = -1;

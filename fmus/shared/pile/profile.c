@@ -14,14 +14,15 @@ static double triangle_integral(double x)
     return 1.0;
 }
 
-void profile_init(Profile *p, const Grid *g, double z0, double height, double center,
-                  double half_width)
+void profile_init(Profile *p, const Grid *g, double z0, double grade, double height,
+                  double center, double half_width)
 {
     for (int i = 0; i < N_h; ++i) {
         const double lo = (cell_low(g, i) - center) / half_width;
         const double hi = (cell_low(g, i + 1) - center) / half_width;
         const double mean = half_width * (triangle_integral(hi) - triangle_integral(lo)) / g->dy;
-        p->h[i] = height > 0.0 ? z0 + height * mean : z0;
+        const double ground = z0 + grade * (0.5 * (cell_low(g, i) + cell_low(g, i + 1)) - center);
+        p->h[i] = height > 0.0 ? ground + height * mean : ground;
     }
     p->active = -1;
     p->n_seg = 0;

@@ -33,10 +33,11 @@ typedef struct {
     int n_seg;
 } Profile;
 
-/* Flat ground at z0 plus a triangular heap (height >= 0, crest at center, base half width
- * half_width > 0): each cell gets the exact mean of that shape over the cell. */
-void profile_init(Profile *p, const Grid *g, double z0, double height, double center,
-                  double half_width);
+/* Ground through z0 at y = center, inclined by `grade` (dz/dy), plus a triangular heap
+ * (height >= 0, crest at center, base half width half_width > 0): each cell gets the exact mean
+ * of that shape over the cell (a line's mean is its value at the cell centre). */
+void profile_init(Profile *p, const Grid *g, double z0, double grade, double height,
+                  double center, double half_width);
 
 /* Index of the cell holding y, or -1 if y lies outside the grid. */
 int profile_cell(const Grid *g, double y);
