@@ -235,3 +235,10 @@ def test_bad_defaults_raise_value_error():
 def test_module_docstring_example_runs():
     result = doctest.testmod(planner.adaptation)
     assert result.attempted > 0 and result.failed == 0
+
+
+def test_proportional_module_examples_run():
+    import planner.proportional
+
+    result = doctest.testmod(planner.proportional)
+    assert result.attempted >= 2 and result.failed == 0

@@ -281,3 +281,54 @@ def test_what_a_stopped_period_measured_is_in_the_log(paper, tmp_path):
     assert len(unfinished["t_s"]) > 10  # the half period is there, after period 1's samples
     assert unfinished["t_s"][0] == pytest.approx(result.records[0]["duration_s"], abs=0.05)
     assert len(complete["t_s"]) > len(unfinished["t_s"])
+
+
+def _strategy(paper, **adaptation):
+    data = paper.to_dict()
+    return scenario_from_dict({**data, "periods": 6,
+                               "adaptation": {**data["adaptation"], **adaptation}})
+
+
+def test_the_proportional_strategy_corrects_by_gain_times_error_in_eq5(paper):
+    """eps = gain * dm, in the same eq. 5 as the fuzzy rule; a larger error, a larger step (no
+    saturation, unlike the fuzzy rule's r_7)."""
+    scenario = _strategy(paper, strategy="proportional", gain_m_per_kg=0.02)
+    result = run_campaign(scenario, plant=KinematicPlant(scenario.geometry()))
+    records = result.records
+    assert len(records) == 6
+    for before, now in zip(records, records[1:], strict=False):
+        dm = scenario.target_mass_kg - before["mass_kg"]
+        assert now["eps_m"] == pytest.approx(0.02 * dm, rel=1e-15)
+        if not now["reset"]:
+            assert now["deepest_point_m"][1] == pytest.approx(
+                before["deepest_point_m"][1] - (before["dz_m"] + now["eps_m"]), abs=1e-15)
+
+
+def test_the_proportional_default_gain_is_the_fuzzy_rules_secant(paper):
+    scenario = _strategy(paper, strategy="proportional")
+    fuzzy = paper.fuzzy_rule()
+    gain = fuzzy.outputs_m[-1] / fuzzy.centres_kg[-1]
+    assert scenario.adaptation_rule()(fuzzy.centres_kg[-1]) == pytest.approx(fuzzy.outputs_m[-1])
+    assert scenario.adaptation_rule().gain_m_per_kg == pytest.approx(gain, rel=1e-15)
+
+
+def test_the_fixed_strategy_digs_one_trajectory_over_and_over(paper):
+    """No adaptation: every period through D0. The double's ground keeps the first cut, so the
+    later periods dig nothing: what adaptation is for."""
+    scenario = _strategy(paper, strategy="fixed")
+    plant = KinematicPlant(scenario.geometry())
+    result = run_campaign(scenario, plant=plant)
+    points = [r["deepest_point_m"] for r in result.records]
+    assert points == [[scenario.adaptation.y_D0_m, scenario.adaptation.z_D0_m]] * 6
+    assert result.records[0]["mass_kg"] > 1.0
+    assert all(r["mass_kg"] < 1e-9 for r in result.records[1:])
+    assert all(np.array_equal(ref.position_rad, plant.references[0].position_rad)
+               for ref in plant.references)
+
+
+def test_an_unknown_strategy_or_a_negative_gain_is_refused(paper):
+    from orchestrator.scenario import ScenarioError
+
+    for bad in ({"strategy": "neural"}, {"strategy": "proportional", "gain_m_per_kg": -0.01}):
+        with pytest.raises(ScenarioError, match="strategy|gain_m_per_kg"):
+            _strategy(paper, **bad)

@@ -180,7 +180,7 @@ def run_campaign(
 def _dig(scenario: Scenario, plant: Plant, log, records: list,
          progress: Callable[[dict[str, Any]], None] | None) -> tuple[str, str]:
     planner = scenario.period_planner()
-    rule, defaults = scenario.fuzzy_rule(), scenario.adaptation_defaults()
+    rule, defaults = scenario.adaptation_rule(), scenario.adaptation_defaults()
     step_s = float(getattr(plant, "communication_step_s", scenario.plant.communication_step_s))
     decision: Decision = initial_state(defaults, planner.reachable)
     t0_s = 0.0

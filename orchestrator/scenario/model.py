@@ -48,6 +48,7 @@ from planner.adaptation import AdaptationDefaults
 from planner.digging_path import PathShape
 from planner.fuzzy import PAPER_CENTRE_FRACTIONS, PAPER_OUTPUTS_M, FuzzyRule
 from planner.period_plan import PeriodPlanner
+from planner.proportional import ProportionalRule
 from plant_models import presets
 from plant_models.geometry import ExcavatorGeometry
 from plant_models.model_spec import FmuSpec
@@ -115,9 +116,22 @@ class Scenario(Section):
             centres = FuzzyRule.paper(self.target_mass_kg, adaptation.centre_fractions).centres_kg
         return FuzzyRule(centres_kg=centres, outputs_m=adaptation.outputs_m)
 
+    def adaptation_rule(self) -> FuzzyRule | ProportionalRule:
+        """eps_m = rule(dm_kg) of the scenario's adaptation.strategy (AdaptationSection)."""
+        strategy = self.adaptation.strategy
+        if strategy == "fuzzy":
+            return self.fuzzy_rule()
+        if strategy == "fixed":
+            return ProportionalRule(0.0)
+        if self.adaptation.gain_m_per_kg is not None:
+            return ProportionalRule(self.adaptation.gain_m_per_kg)
+        fuzzy = self.fuzzy_rule()
+        return ProportionalRule.secant_of(fuzzy.outputs_m[-1], fuzzy.centres_kg[-1])
+
     def adaptation_defaults(self) -> AdaptationDefaults:
         a = self.adaptation
-        return AdaptationDefaults(y_D0=a.y_D0_m, z_D0=a.z_D0_m, dz_0=a.dz_0_m, dy_0=a.dy_0_m)
+        dz_0 = 0.0 if a.strategy == "fixed" else a.dz_0_m  # fixed: D stays at D0
+        return AdaptationDefaults(y_D0=a.y_D0_m, z_D0=a.z_D0_m, dz_0=dz_0, dy_0=a.dy_0_m)
 
     def fmu_specs(self) -> dict[str, FmuSpec]:
         """role (boom, stick, bucket, pile) -> FmuSpec."""

@@ -4,6 +4,7 @@ units: m, deg, deg/s, kg, s). orchestrator.scenario.model assembles them into a 
 from __future__ import annotations
 
 import math
+from typing import Literal
 
 from pydantic import (
     BaseModel,
@@ -82,8 +83,15 @@ class TrajectorySection(Section):
 
 class AdaptationSection(Section):
     """D0 and the steps of eq. 5 (planner.adaptation); the fuzzy rule (planner.fuzzy): either
-    centre_fractions (ps, pb, vpb as fractions of the target) or all 7 centres_kg."""
+    centre_fractions (ps, pb, vpb as fractions of the target) or all 7 centres_kg.
 
+    strategy: what turns the weight error into eq. 5's correction eps: "fuzzy" (the paper's
+    rule), "proportional" (eps = gain_m_per_kg * dm, planner.proportional; without a gain, the
+    secant through the fuzzy rule's vpb term) or "fixed" (no correction and dz_0 = 0: every
+    period digs the same trajectory through D0, the baseline without adaptation)."""
+
+    strategy: Literal["fuzzy", "proportional", "fixed"] = "fuzzy"
+    gain_m_per_kg: Number | None = Field(default=None, ge=0.0)
     y_D0_m: Number
     z_D0_m: Number
     dz_0_m: Number
