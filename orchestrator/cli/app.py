@@ -25,6 +25,7 @@ from orchestrator.cli.conventions import (
     fail,
     version,
 )
+from orchestrator.cli.sweep import sweep as sweep_command
 
 app = typer.Typer(
     cls=Group,
@@ -250,6 +251,9 @@ def compare(
     failure = compare_runs(run_logs, as_json, plots)
     if failure is not None:
         _fail(*failure)
+
+
+app.command("sweep", cls=Command)(sweep_command)
 
 
 @app.command("replay", cls=Command)

@@ -1,0 +1,220 @@
+"""`excosim sweep SWEEP.toml`: many campaigns over a sweep file's axes, on a local pool or a Dask
+cluster, with a progress bar over runs, a summary table (Parquet, CSV), an overview plot and
+resume (orchestrator.sweep).
+
+Exit status: 0 when every run dug its campaign; 1 when some run failed (its row says why, the
+others went on); 2 for a mistake found before any run (the sweep file, a scenario value, an
+option, an output folder that holds something else, an unreachable scheduler, an FMU file that
+is not ours without --trust); 130 for Ctrl-C and 143 for SIGTERM, after which the same command
+goes on where the sweep stopped.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.console import Console
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
+
+from orchestrator.cli.conventions import fail, json_text
+from orchestrator.cli.signals import (
+    INTERRUPTED_EXIT,
+    TERMINATED_EXIT,
+    Terminated,
+    terminate_like_ctrl_c,
+)
+
+SWEEP_FILE = "sweep.toml"  # the sweep file's copy in its output folder: whose runs these are
+
+
+def sweep(
+    sweep_file: Annotated[Path, typer.Argument(metavar="SWEEP.toml", help="Sweep file, e.g. "
+                                               "sweeps/robustness.toml.")],
+    output: Annotated[Path | None, typer.Option(
+        "-o", "--output", metavar="DIR", help="Folder of the run logs and the summary "
+        "(default: runs/<sweep name>); the same folder again resumes the sweep.")] = None,
+    workers: Annotated[int | None, typer.Option(
+        "--workers", metavar="N", help="Local worker processes (default: the cores).")] = None,
+    scheduler: Annotated[str | None, typer.Option(
+        "--scheduler", metavar="ADDRESS", help="Run on an existing Dask cluster, e.g. "
+        "tcp://host:8786, instead of local workers.")] = None,
+    recycle_after: Annotated[int, typer.Option(
+        "--recycle-after", metavar="K", help="Replace a local worker process after K runs.")
+    ] = 10,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors.")
+                     ] = False,
+    trust: Annotated[bool, typer.Option("--trust", help="Run FMU files that differ from FMUs "
+                                        "built from this version's sources.")] = False,
+) -> None:
+    """Run many campaigns over a sweep file's axes; summarise them in one table."""
+    if workers is not None and scheduler is not None:
+        _exit("--workers and --scheduler exclude each other (a cluster has its own workers)", 2)
+    if as_json and quiet:
+        _exit("--json and --quiet exclude each other", 2)
+    with terminate_like_ctrl_c():
+        try:
+            code = _sweep(sweep_file, output, workers, scheduler, recycle_after, as_json,
+                          quiet, trust)
+        except Terminated:
+            code = _stopped("terminated (SIGTERM)", TERMINATED_EXIT)
+        except KeyboardInterrupt:
+            code = _stopped("interrupted", INTERRUPTED_EXIT)
+    if code:
+        raise typer.Exit(code)
+
+
+_WHERE: dict[str, Any] = {}  # what a stop reports: the folder, runs done of how many
+
+
+def _stopped(what: str, code: int) -> int:
+    if "out_dir" not in _WHERE:
+        fail(f"{what} before any run started")
+        return code
+    fail(f"{what}: {_WHERE['done']} of {_WHERE['total']} runs done, summary in "
+         f"{_WHERE['out_dir']}; the same command goes on from there")
+    return code
+
+
+def _exit(message: str, code: int) -> None:
+    fail(message)
+    raise typer.Exit(code)
+
+
+def _sweep(sweep_file: Path, output: Path | None, workers: int | None, scheduler: str | None,
+           recycle_after: int, as_json: bool, quiet: bool, trust: bool) -> int:
+    from orchestrator.sweep import SchedulerUnreachable, SweepError, load_sweep, prepare, run_sweep
+
+    _WHERE.clear()
+    try:
+        spec = load_sweep(sweep_file)
+        out_dir = output or Path("runs") / (re.sub(r"[^A-Za-z0-9_.-]+", "-", spec.name)
+                                             .strip("-.") or "sweep")
+        problem = _folder_problem(out_dir, spec)
+        if problem:
+            _exit(problem, 2)
+        spec, tasks = prepare(spec, out_dir)
+    except SweepError as error:
+        _exit(str(error), 2)
+    refused = _trust(tasks, trust, quiet)
+    if refused:
+        _exit(*refused)
+    err = Console(stderr=True, highlight=False)
+    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+               TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn())
+    with Progress(*columns, console=err, transient=True,
+                  disable=quiet or not err.is_terminal) as bar:
+        task = bar.add_task(f"{spec.name}: planning", total=len(tasks))
+        failed: list[str] = []
+
+        def started(to_run: int, skipped: int) -> None:
+            _WHERE.update(out_dir=out_dir, done=skipped, total=to_run + skipped)
+            _copy_sweep_file(spec, out_dir)
+            bar.update(task, completed=skipped, description=f"{spec.name}: {skipped} skipped")
+
+        def ended(row: dict[str, Any]) -> None:
+            _WHERE["done"] += 1
+            failed.extend([row["run"]] if row.get("status") != "done" else [])
+            bar.update(task, advance=1, description=f"{spec.name}: {len(failed)} failed")
+
+        try:
+            result = run_sweep(spec, out_dir, workers=workers, scheduler=scheduler,
+                               recycle_after=recycle_after, tasks=tasks, progress=ended,
+                               on_start=started)
+        except (SweepError, SchedulerUnreachable) as error:
+            _exit(str(error), 2)
+        except OSError as error:
+            _exit(f"{out_dir}: {error.strerror or error}", 2)
+    if as_json:
+        print(json_text(_report(result)))
+    elif not quiet:
+        _print_table(result)
+    return 1 if result.failed else 0
+
+
+def _folder_problem(out_dir: Path, spec) -> str | None:
+    """Why out_dir cannot hold this sweep's runs, or None (new, empty, or this sweep's)."""
+    if out_dir.exists() and not out_dir.is_dir():
+        return f"-o {out_dir}: not a folder"
+    if not out_dir.is_dir() or not any(out_dir.iterdir()):
+        return None
+    copy = out_dir / SWEEP_FILE
+    try:
+        text = copy.read_text(encoding="utf-8")
+    except OSError:
+        return f"-o {out_dir}: holds files but no {SWEEP_FILE}: not a sweep's folder"
+    if text != spec.path.read_text(encoding="utf-8"):
+        return (f"-o {out_dir}: holds the runs of another sweep file ({copy} differs from "
+                f"{spec.path}); give another -o")
+    return None
+
+
+def _copy_sweep_file(spec, out_dir: Path) -> None:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / SWEEP_FILE).write_text(spec.path.read_text(encoding="utf-8"), encoding="utf-8")
+
+
+def _trust(tasks, trust: bool, quiet: bool) -> tuple[str, int] | None:
+    """The --trust rule of `excosim run`, once per distinct set of FMU files."""
+    from orchestrator.cli.trust import trust_problem
+    from orchestrator.scenario import scenario_from_dict
+
+    seen = set()
+    for task in tasks:
+        files = tuple(task.scenario["plant"][role]["fmu"]
+                      for role in ("boom", "stick", "bucket", "pile"))
+        if files in seen:
+            continue
+        seen.add(files)
+        scenario = scenario_from_dict(task.scenario, source=task.scenario_name,
+                                      check_fmus=False)
+        refused = trust_problem(scenario, trust, quiet)
+        if refused is not None:
+            return f"{task.run}: {refused[0]}", refused[1]
+    return None
+
+
+def _report(result) -> dict[str, Any]:
+    from orchestrator.sweep.table import axis_statistics
+
+    return {
+        "sweep": result.sweep.name, "out_dir": str(result.out_dir),
+        "runs": len(result.frame), "ran": len(result.ran), "skipped": len(result.skipped),
+        "failed": result.failed,
+        "files": {"parquet": str(result.parquet), "csv": str(result.csv),
+                  "overview": str(result.overview) if result.overview else None},
+        "axes": {axis.name: axis_statistics(result.frame, axis.name)
+                 for axis in result.sweep.axes},
+    }
+
+
+def _print_table(result) -> None:
+    from orchestrator.sweep.table import axis_statistics
+
+    out = Console(highlight=False)
+    out.print(f"{result.sweep.name}: {len(result.frame)} runs ({len(result.ran)} run now, "
+              f"{len(result.skipped)} already complete, {len(result.failed)} failed) in "
+              f"{result.out_dir}", markup=False, soft_wrap=True)
+    for axis in result.sweep.axes:
+        out.print(f"\n{axis.name}", markup=False)
+        out.print(f"  {'value':>24}  runs  mean|err| kg  worst kg  within band  resets",
+                  markup=False)
+        for s in axis_statistics(result.frame, axis.name):
+            mean = "-" if s["mean_abs_error_kg"] is None else f"{s['mean_abs_error_kg']:.2f}"
+            worst = "-" if s["worst_abs_error_kg"] is None else f"{s['worst_abs_error_kg']:.2f}"
+            share = "-" if s["within_share"] is None else f"{100 * s['within_share']:.0f} %"
+            value = json.dumps(s["value"]) if not isinstance(s["value"], str) else s["value"]
+            out.print(f"  {value[-24:]:>24}  {s['runs']:>4}  {mean:>12}  {worst:>8}  "
+                      f"{share:>11}  {s['resets']:>6}", markup=False)
+    out.print(f"\nsummary: {result.parquet}, {result.csv}", markup=False, soft_wrap=True)

@@ -1,0 +1,17 @@
+"""Sweeps: many campaigns over axes of scenario values, plant substitutions and seeds, on a local
+process pool or an existing Dask cluster, with a summary table and resume.
+
+    from orchestrator.sweep import run_sweep
+    result = run_sweep("sweeps/robustness.toml", "runs/robustness", workers=2)
+    result.frame  # one row per run: axis values, compare figures, termination, wall time, log
+
+The sweep file: orchestrator.sweep.spec; the runs: orchestrator.sweep.plan; where they run:
+orchestrator.sweep.executors; the summary: orchestrator.sweep.table.
+"""
+
+from orchestrator.sweep.executors import SchedulerUnreachable
+from orchestrator.sweep.runner import SweepResult, prepare, run_sweep
+from orchestrator.sweep.spec import Sweep, SweepError, load_sweep
+
+__all__ = ["SchedulerUnreachable", "Sweep", "SweepError", "SweepResult", "load_sweep", "prepare",
+           "run_sweep"]

@@ -1,0 +1,152 @@
+"""A sweep's summary: one row per run, as Parquet and CSV, and an overview plot.
+
+Columns: run; one per axis (its name: the scenario key, "fmu:<roles>" or "scenario"); status
+("done" or "failed"); termination; the figures of `excosim compare` (periods, resets,
+mean_abs_error_kg, max_abs_error_kg, within_band, counted, band_kg, mean_duration_s,
+max_duration_s, peak_jerk_deg_s3; errors counted from period 2 on); wall_s (s, the run in its
+worker, plant set-up included); message (the log's end line); error (why a run failed); log
+(path relative to the sweep's folder); log_sha256; fmus (JSON, role -> FMU content hash).
+
+    import pandas as pd
+    pd.read_parquet("runs/robustness/summary.parquet").groupby("adaptation.strategy")
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from orchestrator.sweep.worker import FIGURES
+
+SUMMARY = "summary"  # file stem of summary.parquet and summary.csv
+OVERVIEW = "overview.png"
+_TAIL = ("status", "termination", *FIGURES, "wall_s", "message", "error", "log", "log_sha256",
+         "fmus")
+
+
+def summary_frame(rows: Sequence[dict[str, Any]], axis_names: Sequence[str], out_dir: Path):
+    """pandas DataFrame of the rows in run order, log paths relative to out_dir. Axis values
+    that are not plain numbers, strings or bools (lists) are kept as JSON text."""
+    import pandas as pd
+
+    ordered = sorted(rows, key=lambda row: row["run"])
+    records = []
+    for row in ordered:
+        record = {"run": row["run"]}
+        for name in axis_names:
+            value = row.get(name)
+            record[name] = json.dumps(value) if isinstance(value, list | tuple | dict) else value
+        for name in _TAIL:
+            record[name] = row.get(name)
+        record["log"] = _relative(record["log"], out_dir)
+        records.append(record)
+    frame = pd.DataFrame.from_records(records, columns=["run", *axis_names, *_TAIL])
+    for name in axis_names:  # one type per column (Parquet needs it): mixed ones as text
+        kinds = {type(v) for v in frame[name] if v is not None}
+        if len(kinds - {int, float}) > 0 and len(kinds) > 1:
+            frame[name] = frame[name].map(lambda v: v if v is None else json.dumps(v))
+    return frame
+
+
+def _relative(path: Any, out_dir: Path) -> Any:
+    if not path:
+        return path
+    try:
+        return str(Path(path).resolve().relative_to(out_dir.resolve()))
+    except ValueError:
+        return str(path)
+
+
+def write_summary(frame, out_dir: Path) -> tuple[Path, Path]:
+    """summary.parquet and summary.csv in out_dir, each written whole then renamed into place
+    (a reader never sees half a table). Returns their paths."""
+    parquet, csv = out_dir / f"{SUMMARY}.parquet", out_dir / f"{SUMMARY}.csv"
+    for path, write in ((parquet, lambda p: frame.to_parquet(p, index=False)),
+                        (csv, lambda p: frame.to_csv(p, index=False))):
+        partial = path.with_name(path.name + ".part")
+        write(partial)
+        partial.replace(path)
+    return parquet, csv
+
+
+def axis_statistics(frame, axis: str) -> list[dict[str, Any]]:
+    """Weight-error statistics per value of one axis, over the runs that finished: value, runs,
+    mean_abs_error_kg (mean over runs), worst_abs_error_kg, within_band (sum), counted (sum),
+    within_share (within_band / counted), resets (sum), failed (runs)."""
+    out = []
+    for value, group in frame.groupby(axis, sort=False, dropna=False):
+        done = group[group["status"] == "done"]
+        counted = int(done["counted"].fillna(0).sum())
+        within = int(done["within_band"].fillna(0).sum())
+        out.append({
+            "value": value, "runs": len(group),
+            "mean_abs_error_kg": _mean(done["mean_abs_error_kg"]),
+            "worst_abs_error_kg": _max(done["max_abs_error_kg"]),
+            "within_band": within, "counted": counted,
+            "within_share": within / counted if counted else None,
+            "resets": int(done["resets"].fillna(0).sum()),
+            "failed": int((group["status"] != "done").sum()),
+        })
+    return out
+
+
+def _mean(series) -> float | None:
+    values = [float(v) for v in series if v is not None and not _nan(v)]
+    return math.fsum(values) / len(values) if values else None
+
+
+def _max(series) -> float | None:
+    values = [float(v) for v in series if v is not None and not _nan(v)]
+    return max(values) if values else None
+
+
+def _nan(value: Any) -> bool:
+    return isinstance(value, float) and math.isnan(value)
+
+
+def overview_plot(frame, axis_names: Sequence[str], path: Path) -> Path:
+    """One panel per axis: each run's mean |weight error| (kg, periods 2..) against the axis
+    value (a box per value for up to 12 distinct values, else a scatter), the share of periods
+    within the band on a second scale. Returns path (PNG)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    done = frame[frame["status"] == "done"]
+    fig, panels = plt.subplots(1, len(axis_names), figsize=(4.8 * len(axis_names), 4.0),
+                               squeeze=False)
+    for panel, axis in zip(panels[0], axis_names, strict=True):
+        stats = axis_statistics(frame, axis)
+        values = [s["value"] for s in stats]
+        numeric = all(isinstance(v, int | float) and not isinstance(v, bool) for v in values)
+        if numeric and len(values) > 12:
+            panel.scatter(done[axis], done["mean_abs_error_kg"], s=12)
+        else:
+            labels = [_label(v) for v in values]
+            data = [[float(e) for e in done[done[axis] == v]["mean_abs_error_kg"]
+                     if e is not None and not _nan(e)] for v in values]
+            panel.boxplot([d if d else [math.nan] for d in data], tick_labels=labels)
+            share = panel.twinx()
+            share.plot(range(1, len(stats) + 1),
+                       [100 * s["within_share"] if s["within_share"] is not None else math.nan
+                        for s in stats], "o--", color="tab:green")
+            share.set_ylim(0, 105)
+            share.set_ylabel("periods within the band (%)", color="tab:green")
+            panel.tick_params(axis="x", labelrotation=20)
+        panel.set_xlabel(axis)
+        panel.set_ylabel("mean |weight error| per run (kg)")
+        panel.grid(alpha=0.3)
+    fig.suptitle(f"{len(done)} of {len(frame)} runs done")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def _label(value: Any) -> str:
+    text = f"{value:.4g}" if isinstance(value, float) else str(value)
+    return text if len(text) <= 24 else "..." + text[-21:]
