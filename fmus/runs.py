@@ -149,6 +149,10 @@ class FastSlave:
         # (orchestrator.campaign.watchdog), which finds a stuck step by its code object
         # (STEP_CODES) and reads `label` and `t` from its frame.
         label = f"{self.slave.instanceName} ({self.description.modelName})"
+        last_error = self._last_error
+
+        def said() -> str:  # what the FMU logged as the reason, if anything
+            return f": {last_error[0]}" if last_error[0] else ""
         if version == 2:
             do_step.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int]
             self._do_step = functools.partial(do_step, component)  # (t, h, 1): bench/
@@ -159,7 +163,7 @@ class FastSlave:
                 if set_inputs() > 1:
                     raise RuntimeError(f"{label}: {set_name} failed at t = {t}")
                 if do_step(component, t, h, 1) > 1:
-                    raise RuntimeError(f"{label}: {step_name} failed at t = {t}")
+                    raise RuntimeError(f"{label}: {step_name} failed at t = {t}{said()}")
                 if get_outputs() > 1:
                     raise RuntimeError(f"{label}: {get_name} failed at t = {t}")
                 return out
@@ -178,7 +182,7 @@ class FastSlave:
                     raise RuntimeError(f"{label}: {set_name} failed at t = {t}")
                 if do_step(component, double(t), double(h), no_set_prior, event, stop, early,
                            last) > 1:
-                    raise RuntimeError(f"{label}: {step_name} failed at t = {t}")
+                    raise RuntimeError(f"{label}: {step_name} failed at t = {t}{said()}")
                 if terminate.value:
                     raise RuntimeError(f"{label} asked to terminate the simulation at t = {t}")
                 if get_outputs() > 1:
@@ -191,7 +195,12 @@ class FastSlave:
         step from t (s) by h (s), return the outputs (the internal buffer)."""
 
     def _initialize(self, variables: dict, start_values: Mapping[str, float]) -> None:
-        self.slave.instantiate()
+        self._last_error = [""]  # the FMU's last error message, for the step's error
+        if self.fmi_version == 2:
+            self._callbacks = _recording_callbacks_2(self._last_error, self.slave.instanceName)
+            self.slave.instantiate(callbacks=self._callbacks)
+        else:
+            self.slave.instantiate(logMessage=_recording_logger_3(self._last_error))
         if self.fmi_version == 2:
             self.slave.setupExperiment(startTime=0.0)
         for name, value in _typed_start_values(self.description, start_values).items():
@@ -306,3 +315,50 @@ def run_ecospy(fmu: str | Path, inputs: Mapping[str, np.ndarray], outputs: Seque
     finally:
         structure.free()
     return {name: result[:, i] for i, name in enumerate(outputs)}
+
+
+_LAST_ERRORS: dict[bytes, list[str]] = {}  # instance name -> its last error message
+_CALLBACKS_2: list = []  # the one FMI 2.0 callbacks structure, made on first use
+
+
+def _recording_callbacks_2(last_error: list[str], instance: str):
+    """fmpy's FMI 2.0 callbacks (messages printed as fmpy prints them, the variadic arguments
+    formatted by fmpy's native proxy) that also keep each instance's last error message, in
+    last_error[0] for `instance`. fmpy's proxy holds one Python logger for the whole process,
+    so there is one structure, and the instance name tells whose message it is."""
+    _LAST_ERRORS[instance.encode("utf-8")] = last_error
+    if _CALLBACKS_2:
+        return _CALLBACKS_2[0]
+    from fmpy import fmi2
+    from fmpy.fmi1 import printLogMessage
+
+    def log(component, name, status, category, message) -> None:
+        printLogMessage(component, name, status, category, message)
+        holder = _LAST_ERRORS.get(name or b"")
+        if status >= 3 and holder is not None:  # fmi2Error, fmi2Fatal
+            holder[0] = (message or b"").decode("utf-8", "replace")
+
+    callbacks = fmi2.fmi2CallbackFunctions()
+    callbacks.logger = fmi2.fmi2CallbackLoggerTYPE(log)
+    callbacks.allocateMemory = fmi2.fmi2CallbackAllocateMemoryTYPE(fmi2.calloc)
+    callbacks.freeMemory = fmi2.fmi2CallbackFreeMemoryTYPE(fmi2.free)
+    try:
+        from fmpy.logging import addLoggerProxy
+
+        addLoggerProxy(ctypes.byref(callbacks))
+    except (ImportError, OSError, AttributeError):
+        pass  # messages then arrive unformatted; ours carry no format arguments
+    _CALLBACKS_2.append(callbacks)
+    return callbacks
+
+
+def _recording_logger_3(last_error: list[str]):
+    """fmpy's FMI 3.0 log printer that also keeps the last error message in last_error[0]."""
+    from fmpy.fmi3 import printLogMessage
+
+    def log(environment, status, category, message) -> None:
+        printLogMessage(environment, status, category, message)
+        if status >= 3:  # fmi3Error, fmi3Fatal
+            last_error[0] = (message or b"").decode("utf-8", "replace")
+
+    return log

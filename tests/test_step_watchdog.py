@@ -5,7 +5,6 @@ the extracted FMUs removed; the step loop itself carries no extra work."""
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 import sys
 import time
@@ -13,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from faulty_fmus import HANG, patched_cylinder
 
 import fmus
-from fmus.builder import MODELS_DIR
 from fmus.runs import FastSlave
 from orchestrator.campaign.watchdog import StepWatchdog, stuck_step
 from orchestrator.runlog import read_run
@@ -28,24 +27,7 @@ MAIN = "from orchestrator.cli.app import main; main()"
 @pytest.fixture(scope="module")
 def hanging_cylinder(tmp_path_factory) -> Path:
     """Our cylinder, but its step spins forever from t = 0.5 s on."""
-    folder = tmp_path_factory.mktemp("hang")
-    model = Path(shutil.copytree(MODELS_DIR / "HydraulicCylinder", folder / "HydraulicCylinder"))
-    source = (model / "model.c").read_text()
-    marker = "    (void)t;\n"
-    assert source.count(marker) == 1
-    (model / "model.c").write_text(source.replace(
-        marker, "    if (t >= 0.5) {\n        volatile int spin = 1;\n        while (spin) {\n"
-        "        }\n    }\n"))
-    old = os.environ.get("EXCOSIM_FMU_DIR")
-    os.environ["EXCOSIM_FMU_DIR"] = str(folder / "built")
-    try:
-        built = fmus.build_model(model)
-    finally:
-        if old is None:
-            del os.environ["EXCOSIM_FMU_DIR"]
-        else:
-            os.environ["EXCOSIM_FMU_DIR"] = old
-    return shutil.copyfile(built, folder / "Hanging.fmu")
+    return patched_cylinder(tmp_path_factory.mktemp("hang"), HANG, 0.5, "Hanging")
 
 
 def test_a_step_that_never_returns_ends_the_run_with_the_fmu_named(tmp_path, hanging_cylinder):
