@@ -19,7 +19,7 @@ LANGUAGES = {"sh": "shell", "bash": "shell", "python": "python"}
 SETUP = ["make run", "make test"]
 # What a block may use of the project, linked into the fresh folder (the README's commands are
 # written for a shell in the project's folder).
-PROJECT_ITEMS = ("scenarios", "foxglove", "examples", "bench")
+PROJECT_ITEMS = ("scenarios", "foxglove", "examples", "bench", "sweeps")
 
 
 def blocks(text: str) -> list[tuple[str, str]]:
