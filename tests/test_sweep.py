@@ -146,7 +146,7 @@ fmu = ["HydraulicCylinder", "{failing}", "{crashing}", "HydraulicCylinder"]
                       "run-0004": "done"}
     errors = result.frame.set_index("run")["error"]
     assert "burst hose" in errors["run-0002"] and "boom" in errors["run-0002"]
-    assert "worker process died" in errors["run-0003"]
+    assert "worker process died" in errors["run-0003"] and "signal 6" in errors["run-0003"]
     assert result.frame.set_index("run").loc["run-0002", "termination"] == "error"
 
 
@@ -204,3 +204,13 @@ sample = {{ distribution = "integers", low = 0, high = 1000, count = 3, seed = 5
     assert density.min() >= 1200.0 and density.max() < 2000.0 and len(set(density)) == 50
     assert all(isinstance(s, int) and 0 <= s < 1000 for s in first.axes[1].values)
     assert len(first.points()) == 150  # two groups: a product
+
+
+def test_local_workers_are_replaced_after_their_runs(tmp_path):
+    """--recycle-after 1 on 1 worker: every run in a process of its own (the pids differ), and
+    the sweep does not stall when a worker retires (ProcessPoolExecutor's would, gh-115634)."""
+    sweep = _write(tmp_path, f'scenario = "{PAPER}"\nset = ["periods=1"]\n[[axis]]\n'
+                   'key = "seed"\nvalues = [1, 2, 3]')
+    result = run_sweep(sweep, tmp_path / "out", workers=1, recycle_after=1)
+    assert list(result.frame["status"]) == ["done"] * 3
+    assert result.frame["worker"].nunique() == 3

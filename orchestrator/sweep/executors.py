@@ -2,10 +2,12 @@
 
 Local pool (default): `workers` processes started fresh ("spawn": no state inherited from the
 planner), each with one BLAS thread, each replaced after `recycle_after` runs so that whatever a
-long sweep leaks or fragments in a process does not pile up. A worker that dies (a crash inside
-an FMU, a stuck step ended by the watchdog) breaks the pool: the runs that had started are run
-again one by one in a pool of their own, where the run that kills its worker again is recorded
-as failed; the runs that had not started go on in a new pool.
+long sweep leaks or fragments in a process does not pile up. Each worker takes one run at a
+time over its own pipe, so the planner knows which run every worker is on: a worker that dies
+(a crash inside an FMU, a stuck step ended by the watchdog) fails that run alone, and a new
+worker takes the next one. (The standard ProcessPoolExecutor is not used: its
+max_tasks_per_child deadlocks on Python 3.11-3.13 once a worker retires, CPython gh-115634, and
+a dead worker breaks the whole pool without saying whose run killed it.)
 
 Dask (`scheduler="tcp://host:8786"`): each run is one task on the cluster (distributed's own
 scheduling, retries of lost workers and as_completed). Our FMUs are built on each worker from
@@ -21,10 +23,10 @@ import multiprocessing
 import os
 import signal
 import threading
+from collections import deque
 from collections.abc import Callable, Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
+from multiprocessing.connection import wait
 from pathlib import Path
 from typing import Any
 
@@ -42,58 +44,109 @@ class SchedulerUnreachable(ConnectionError):
 
 def run_local(tasks: list[RunTask], token: str, workers: int, recycle_after: int,
               on_row: OnRow) -> None:
-    """Run `tasks` on a local pool of `workers` processes; on_row(row) in this process as each
-    run ends, in the order they end."""
-    pending = list(tasks)
-    while pending:
-        broken = _pool_pass(pending, token, workers, recycle_after, on_row)
-        started = [task for task in broken if Path(task.log_path).exists()]
-        pending = [task for task in broken if task not in started]
-        for task in started:  # alone, so that a second death is its own
-            if _pool_pass([task], token, 1, 1, on_row):
-                on_row(_died(task))
-
-
-def _pool_pass(tasks: list[RunTask], token: str, workers: int, recycle_after: int,
-               on_row: OnRow) -> list[RunTask]:
-    """One pool over `tasks`; returns the tasks lost to a broken pool."""
-    broken = []
-    with _one_blas_thread(), ProcessPoolExecutor(
-            max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-            max_tasks_per_child=recycle_after, initializer=_init_worker) as pool:
-        futures = {pool.submit(execute, task, token): task for task in tasks}
+    """Run `tasks` on `workers` local processes; on_row(row) in this process as each run ends,
+    in the order they end."""
+    context = multiprocessing.get_context("spawn")
+    queue, pool = deque(tasks), []
+    with _one_blas_thread():
         try:
-            for future in as_completed(futures):
-                task = futures[future]
+            while queue or any(w.task is not None for w in pool):
+                while len(pool) < min(workers, len(queue) + _busy(pool)):
+                    pool.append(_Worker(context, token))
+                for worker in pool:
+                    if worker.task is None and queue:
+                        worker.give(queue.popleft())
+                busy = [w for w in pool if w.task is not None]
+                wait([w.connection for w in busy] + [w.process.sentinel for w in busy])
+                for worker in busy:
+                    row = worker.result()
+                    if row is None:
+                        continue
+                    on_row(row)
+                    if worker.task is None and worker.done >= recycle_after or worker.dead:
+                        worker.stop()
+                        pool.remove(worker)
+                for worker in [w for w in pool if w.task is None and not queue]:
+                    worker.stop()  # nothing left for it: free its memory now
+                    pool.remove(worker)
+        finally:
+            for worker in pool:
+                worker.stop()
+
+
+def _busy(pool: list[_Worker]) -> int:
+    return sum(worker.task is not None for worker in pool)
+
+
+class _Worker:
+    """One spawned worker process and the run it is on (so a death is that run's alone)."""
+
+    def __init__(self, context, token: str) -> None:
+        self.connection, child = context.Pipe()
+        self.process = context.Process(target=_serve, args=(child, token), daemon=True,
+                                       name="excosim-sweep-worker")
+        self.process.start()
+        child.close()
+        self.task: RunTask | None = None
+        self.done, self.dead = 0, False
+
+    def give(self, task: RunTask) -> None:
+        self.task = task
+        self.connection.send(task)
+
+    def result(self) -> dict[str, Any] | None:
+        """The row of the run it was on once that ended (a failed row if the process died),
+        else None (still running)."""
+        task = self.task
+        if task is None:
+            return None
+        if self.connection.poll():
+            try:
+                row = self.connection.recv()
+            except (EOFError, OSError):
+                row = None
+            if row is not None:
+                self.task, self.done = None, self.done + 1
+                return row
+        elif self.process.is_alive():
+            return None
+        self.task, self.dead = None, True
+        return _died(task, self.process.exitcode)
+
+    def stop(self) -> None:
+        """End the process: idle, by asking; on a run, by SIGTERM (its log gets its end record)."""
+        if self.process.is_alive():
+            if self.task is None:
                 try:
-                    row = future.result()
-                except BrokenProcessPool:
-                    broken.append(task)
-                    continue
-                except Exception as failure:  # noqa: BLE001 - e.g. a row that cannot travel
-                    row = _failed(task, f"{type(failure).__name__}: {failure}")
-                on_row(row)
-        except BaseException:
-            _stop(pool)
-            raise
-    return broken
+                    self.connection.send(None)
+                except OSError:
+                    pass
+            else:
+                self.process.terminate()
+            self.process.join(timeout=10)
+            if self.process.is_alive():
+                self.process.kill()
+                self.process.join()
+        self.connection.close()
+
+
+def _serve(connection, token: str) -> None:
+    """A worker's loop: a task in, its row out, until told to stop (None)."""
+    _init_worker()
+    while True:
+        try:
+            task = connection.recv()
+        except EOFError:  # the planner is gone
+            return
+        if task is None:
+            return
+        connection.send(execute(task, token))
 
 
 def _init_worker() -> None:
     # SIGTERM from the planner (a stopped sweep) ends the run like Ctrl-C: its log gets the
     # end record "interrupted", and the next start of the sweep runs it again.
     signal.signal(signal.SIGTERM, signal.default_int_handler)
-
-
-def _stop(pool: ProcessPoolExecutor) -> None:
-    """End a pool now: cancel what has not started, stop the workers (they close their logs)."""
-    processes = list(getattr(pool, "_processes", {}).values())  # no public handle on them
-    pool.shutdown(wait=False, cancel_futures=True)
-    for process in processes:
-        if process.is_alive():
-            process.terminate()
-    for process in processes:
-        process.join(timeout=10)
 
 
 @contextmanager
@@ -153,9 +206,11 @@ def _failed(task: RunTask, error: str) -> dict[str, Any]:
     return row
 
 
-def _died(task: RunTask) -> dict[str, Any]:
-    row = _failed(task, "the worker process died during the run (a crash inside an FMU or a "
-                  "stuck step)")
+def _died(task: RunTask, exit_code: int | None) -> dict[str, Any]:
+    how = f"signal {-exit_code}" if exit_code is not None and exit_code < 0 else \
+        f"exit status {exit_code}"
+    row = _failed(task, f"the worker process died during the run ({how}: a crash inside an "
+                  "FMU, or a stuck step ended by the watchdog)")
     if row.get("termination") == "error" and row.get("message"):
         row["error"] = row["message"]  # the step watchdog's line names the FMU
     return row

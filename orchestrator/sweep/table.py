@@ -5,7 +5,8 @@ Columns: run; one per axis (its name: the scenario key, "fmu:<roles>" or "scenar
 mean_abs_error_kg, max_abs_error_kg, within_band, counted, band_kg, mean_duration_s,
 max_duration_s, peak_jerk_deg_s3; errors counted from period 2 on); wall_s (s, the run in its
 worker, plant set-up included); message (the log's end line); error (why a run failed); log
-(path relative to the sweep's folder); log_sha256; fmus (JSON, role -> FMU content hash).
+(path relative to the sweep's folder); log_sha256; fmus (JSON, role -> FMU content hash);
+worker (host:pid of the process that ran it).
 
     import pandas as pd
     pd.read_parquet("runs/robustness/summary.parquet").groupby("adaptation.strategy")
@@ -24,7 +25,7 @@ from orchestrator.sweep.worker import FIGURES
 SUMMARY = "summary"  # file stem of summary.parquet and summary.csv
 OVERVIEW = "overview.png"
 _TAIL = ("status", "termination", *FIGURES, "wall_s", "message", "error", "log", "log_sha256",
-         "fmus")
+         "fmus", "worker")
 
 
 def summary_frame(rows: Sequence[dict[str, Any]], axis_names: Sequence[str], out_dir: Path):

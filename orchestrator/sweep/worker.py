@@ -17,6 +17,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import socket
 import tempfile
 import time
 from pathlib import Path
@@ -56,6 +57,7 @@ def _execute(task: RunTask, token: str) -> dict[str, Any]:
         error = f"{type(failure).__name__}: {failure}".replace("\n", " ")
     row.update(log_row(log_path, target))
     row["wall_s"] = time.perf_counter() - started
+    row["worker"] = f"{socket.gethostname()}:{os.getpid()}"
     if error:
         row.update(status="failed", error=error)
     if not in_place and log_path.is_file():
