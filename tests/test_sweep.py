@@ -214,3 +214,36 @@ def test_local_workers_are_replaced_after_their_runs(tmp_path):
     result = run_sweep(sweep, tmp_path / "out", workers=1, recycle_after=1)
     assert list(result.frame["status"]) == ["done"] * 3
     assert result.frame["worker"].nunique() == 3
+
+
+def test_sigterm_stops_the_sweep_in_one_line_and_the_same_command_goes_on(tmp_path):
+    import signal
+    import time
+
+    sweep = _write(tmp_path, f'scenario = "{PAPER}"\nset = ["periods=3"]\n[[axis]]\n'
+                   'key = "seed"\nvalues = [1, 2, 3]')
+    command = [sys.executable, "-c", MAIN, "sweep", str(sweep), "-o", "out", "--workers", "1"]
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    process = subprocess.Popen(command, cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        deadline = time.monotonic() + 120
+        while not (tmp_path / "out" / "runs" / "run-0001.json").exists():
+            assert process.poll() is None and time.monotonic() < deadline
+            time.sleep(0.05)
+        process.send_signal(signal.SIGTERM)
+        out, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+    assert process.returncode == 143 and out == ""
+    assert err.startswith("excosim: terminated (SIGTERM): 1 of 3 runs done, summary in out")
+    assert len(err.strip().splitlines()) == 1
+    assert len(pd.read_parquet(tmp_path / "out" / "summary.parquet")) == 1
+    again = subprocess.run([*command, "--json"], cwd=tmp_path, env=env, capture_output=True,
+                           text=True, timeout=300)
+    assert again.returncode == 0, again.stderr
+    report = json.loads(again.stdout)
+    assert (report["runs"], report["skipped"], report["ran"]) == (3, 1, 2)

@@ -133,14 +133,16 @@ class _Worker:
 def _serve(connection, token: str) -> None:
     """A worker's loop: a task in, its row out, until told to stop (None)."""
     _init_worker()
-    while True:
-        try:
+    try:
+        while True:
             task = connection.recv()
-        except EOFError:  # the planner is gone
-            return
-        if task is None:
-            return
-        connection.send(execute(task, token))
+            if task is None:
+                return
+            connection.send(execute(task, token))
+    except (EOFError, BrokenPipeError):  # the planner is gone
+        return
+    except KeyboardInterrupt:  # stopped (Ctrl-C, SIGTERM): the run has closed its log
+        return
 
 
 def _init_worker() -> None:
