@@ -72,6 +72,19 @@ def test_the_runs_are_the_product_of_the_groups_zipped_inside(local):
     assert list(frame["plant.pile.parameters.density"]) == list(densities) * 2
     assert set(frame["status"]) == {"done"} and list(frame["periods"]) == [2] * 4
     assert result.failed == [] and len(result.ran) == 4
+    assert result.overview.stat().st_size > 10_000  # overview.png, one panel per axis
+
+
+def test_the_per_axis_statistics_are_those_of_the_rows(local):
+    from orchestrator.sweep.table import axis_statistics
+
+    frame = local[1].frame
+    for stats in axis_statistics(frame, "adaptation.strategy"):
+        rows = frame[frame["adaptation.strategy"] == stats["value"]]
+        assert stats["runs"] == len(rows) == 2
+        assert stats["mean_abs_error_kg"] == pytest.approx(rows["mean_abs_error_kg"].mean())
+        assert stats["worst_abs_error_kg"] == rows["max_abs_error_kg"].max()
+        assert stats["within_share"] == rows["within_band"].sum() / rows["counted"].sum()
 
 
 def test_each_run_log_holds_its_own_values(local):

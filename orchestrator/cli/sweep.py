@@ -75,6 +75,7 @@ def sweep(
         raise typer.Exit(code)
 
 
+TABLE_VALUES = 12  # an axis with more distinct values gets no table of its own
 _WHERE: dict[str, Any] = {}  # what a stop reports: the folder, runs done of how many
 
 
@@ -207,6 +208,10 @@ def _print_table(result) -> None:
               f"{len(result.skipped)} already complete, {len(result.failed)} failed) in "
               f"{result.out_dir}", markup=False, soft_wrap=True)
     for axis in result.sweep.axes:
+        if len(set(axis.values)) > TABLE_VALUES:
+            out.print(f"\n{axis.name}: {len(set(axis.values))} values (per run in the summary, "
+                      "per value in overview.png)", markup=False, soft_wrap=True)
+            continue
         out.print(f"\n{axis.name}", markup=False)
         out.print(f"  {'value':>24}  runs  mean|err| kg  worst kg  within band  resets",
                   markup=False)

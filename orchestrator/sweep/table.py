@@ -74,12 +74,13 @@ def write_summary(frame, out_dir: Path) -> tuple[Path, Path]:
 
 
 def axis_statistics(frame, axis: str) -> list[dict[str, Any]]:
-    """Weight-error statistics per value of one axis, over the runs that finished: value, runs,
-    mean_abs_error_kg (mean over runs), worst_abs_error_kg, within_band (sum), counted (sum),
-    within_share (within_band / counted), resets (sum), failed (runs)."""
+    """Weight-error statistics per value of one axis, over the periods the runs dug (a failed
+    run's periods before its failure count too): value, runs, mean_abs_error_kg (mean over
+    runs), worst_abs_error_kg, within_band (sum), counted (sum), within_share (within_band /
+    counted), resets (sum), failed (runs)."""
     out = []
     for value, group in frame.groupby(axis, sort=False, dropna=False):
-        done = group[group["status"] == "done"]
+        done = group[group["counted"].fillna(0) > 0]
         counted = int(done["counted"].fillna(0).sum())
         within = int(done["within_band"].fillna(0).sum())
         out.append({
@@ -117,7 +118,7 @@ def overview_plot(frame, axis_names: Sequence[str], path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    done = frame[frame["status"] == "done"]
+    done = frame[frame["counted"].fillna(0) > 0]
     fig, panels = plt.subplots(1, len(axis_names), figsize=(4.8 * len(axis_names), 4.0),
                                squeeze=False)
     for panel, axis in zip(panels[0], axis_names, strict=True):
@@ -141,7 +142,8 @@ def overview_plot(frame, axis_names: Sequence[str], path: Path) -> Path:
         panel.set_xlabel(axis)
         panel.set_ylabel("mean |weight error| per run (kg)")
         panel.grid(alpha=0.3)
-    fig.suptitle(f"{len(done)} of {len(frame)} runs done")
+    failed = int((frame["status"] != "done").sum())
+    fig.suptitle(f"{len(frame)} runs, {failed} failed (their periods until then count)")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
