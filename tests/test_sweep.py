@@ -260,3 +260,22 @@ def test_sigterm_stops_the_sweep_in_one_line_and_the_same_command_goes_on(tmp_pa
     assert again.returncode == 0, again.stderr
     report = json.loads(again.stdout)
     assert (report["runs"], report["skipped"], report["ran"]) == (3, 1, 2)
+
+
+def test_another_sweeps_folder_is_refused_and_an_edited_sweep_goes_on(tmp_path):
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    base = f'scenario = "{PAPER}"\nset = ["periods=1"]\n[[axis]]\nkey = "seed"\n'
+    first = _write(tmp_path, f'name = "a"\n{base}values = [1]', "a.toml")
+    other = _write(tmp_path, f'name = "b"\n{base}values = [1]', "b.toml")
+    grown = _write(tmp_path, f'name = "a"\n{base}values = [1, 2]', "a2.toml")
+
+    def sweep(path):
+        return subprocess.run([sys.executable, "-c", MAIN, "sweep", str(path), "-o", "out",
+                               "--workers", "1", "--json"], cwd=tmp_path, env=env,
+                              capture_output=True, text=True, timeout=300)
+
+    assert sweep(first).returncode == 0
+    refused = sweep(other)
+    assert refused.returncode == 2 and "another sweep" in refused.stderr
+    report = json.loads(sweep(grown).stdout)
+    assert (report["runs"], report["skipped"], report["ran"]) == (2, 1, 1)

@@ -145,25 +145,34 @@ def _sweep(sweep_file: Path, output: Path | None, workers: int | None, scheduler
 
 
 def _folder_problem(out_dir: Path, spec) -> str | None:
-    """Why out_dir cannot hold this sweep's runs, or None (new, empty, or this sweep's)."""
+    """Why out_dir cannot hold this sweep's runs, or None (new, empty, or a sweep's of the same
+    name: an edited sweep file goes on there, and only runs whose logged scenario is still the
+    planned one are skipped)."""
     if out_dir.exists() and not out_dir.is_dir():
         return f"-o {out_dir}: not a folder"
     if not out_dir.is_dir() or not any(out_dir.iterdir()):
         return None
     copy = out_dir / SWEEP_FILE
     try:
-        text = copy.read_text(encoding="utf-8")
-    except OSError:
+        first = copy.read_text(encoding="utf-8").splitlines()[0]
+    except (OSError, IndexError, UnicodeDecodeError):
         return f"-o {out_dir}: holds files but no {SWEEP_FILE}: not a sweep's folder"
-    if text != spec.path.read_text(encoding="utf-8"):
-        return (f"-o {out_dir}: holds the runs of another sweep file ({copy} differs from "
-                f"{spec.path}); give another -o")
+    if not first.startswith(_header(spec) + " "):
+        return (f"-o {out_dir}: holds the runs of another sweep ({first.removeprefix('# ')}); "
+                "give another -o")
     return None
 
 
+def _header(spec) -> str:
+    return f"# excosim sweep {json.dumps(spec.name)}"
+
+
 def _copy_sweep_file(spec, out_dir: Path) -> None:
+    """The sweep file as it was run, under a first line naming the sweep."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / SWEEP_FILE).write_text(spec.path.read_text(encoding="utf-8"), encoding="utf-8")
+    text = spec.path.read_text(encoding="utf-8")
+    (out_dir / SWEEP_FILE).write_text(f"{_header(spec)} (from {spec.path})\n{text}",
+                                      encoding="utf-8")
 
 
 def _trust(tasks, trust: bool, quiet: bool) -> tuple[str, int] | None:
