@@ -15,11 +15,15 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+# This folder holds planner.py, which would shadow the planner package (spawned workers inherit
+# sys.path): the project's root takes its place.
+sys.path[0] = str(ROOT)
 PAPER = ROOT / "scenarios" / "paper-2020.toml"
 
 
