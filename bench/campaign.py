@@ -5,8 +5,10 @@ per step next to the ecos master stepping the same FMUs.
 
 1. Runs scenarios/paper-2020.toml (20 periods, the simulated excavator, MCAP log in a temporary
    folder) with perf_counter accumulators around the planner (PeriodPlanner._plan: via-points,
-   spline, range check), the plant (SimulatedExcavator.run_period) and the log (RunLog: open,
-   log_period, close). Real-time factor = simulated time / wall time (target >= 100); logging
+   spline, range check), the plant (SimulatedExcavator.run_period), the log (RunLog: open,
+   log_period, close) and the capture of each period's resume state (the four FMUs' serialized
+   states and the master's: orchestrator.campaign.resume_state; its encoding and writing are
+   in the log's share). Real-time factor = simulated time / wall time (target >= 100); logging
    share of wall time (target <= 10 %).
 2. Splits the plant's time into FMUs and master: the FMUs are stepped again, alone, through the
    same fast path (fmus.runs.FastSlave) with the inputs the run recorded (cylinder u and F_ext,
@@ -34,6 +36,7 @@ from fmus.runs import FastSlave, run_ecospy  # noqa: E402
 from orchestrator.campaign import loop as campaign  # noqa: E402
 from orchestrator.plants import simulated_excavator  # noqa: E402
 from orchestrator.plants.master import fmu_path  # noqa: E402
+from orchestrator.runlog import read_run  # noqa: E402
 from orchestrator.runlog import writer as run_log  # noqa: E402
 from orchestrator.scenario import load_scenario  # noqa: E402
 from planner import period_plan  # noqa: E402
@@ -70,6 +73,7 @@ def run_instrumented(scenario, folder: Path):
         timed(run_log.RunLog, name, "logging", seconds)
     timed(campaign, "build_plant", "plant setup", seconds)
     timed(campaign, "sample_reference", "sampling", seconds)
+    timed(campaign, "resume_record", "resume states", seconds)
     begin = time.perf_counter()
     result = campaign.run_campaign(scenario, log_path=folder / "paper.mcap")
     seconds["total"] = time.perf_counter() - begin
@@ -145,6 +149,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as folder:
         result, seconds, measurements = run_instrumented(scenario, Path(folder))
         log_bytes = (Path(folder) / "paper.mcap").stat().st_size
+        states = read_run(Path(folder) / "paper.mcap").resume_states
     simulated = sum(float(m.t_s[-1]) + scenario.plant.communication_step_s
                     for m in measurements)
     total = seconds["total"]
@@ -152,18 +157,21 @@ def main() -> None:
     fmu_seconds, steps = replay_fast(scenario, series)
     master = seconds["plant"] - fmu_seconds
     other = total - sum(seconds[k] for k in ("plant", "planner", "logging", "plant setup",
-                                              "sampling"))
+                                              "sampling", "resume states"))
     print(f"paper-2020: {len(result.records)} periods, termination {result.termination}, "
           f"{simulated:.1f} s simulated in {total:.2f} s wall: real-time factor "
           f"{simulated / total:.1f} (target >= {RTF_TARGET:g})")
     print(f"  {steps} communication steps of {scenario.plant.communication_step_s * 1e3:g} ms, "
-          f"MCAP log {log_bytes / 1e6:.1f} MB")
+          f"MCAP log {log_bytes / 1e6:.1f} MB, resume states "
+          f"{np.mean([len(d) for d in states.values()]) / 1e3:.1f} kB of JSON per period")
     print("share of wall time:")
     for label, value in (("FMUs (replayed alone)", fmu_seconds), ("master (plant - FMUs)", master),
                          ("plant setup (servo design, FMU load)", seconds["plant setup"]),
                          ("planner", seconds["planner"]),
                          ("reference sampling", seconds["sampling"]),
-                         ("logging", seconds["logging"]), ("campaign, adaptation, other", other)):
+                         ("logging", seconds["logging"]),
+                         ("resume states (capture)", seconds["resume states"]),
+                         ("campaign, adaptation, other", other)):
         print(f"  {label:38s} {value:7.3f} s  {100 * value / total:5.1f} %")
     share = seconds["logging"] / total
     print(f"logging {100 * share:.1f} % of wall time (target <= {100 * LOG_SHARE_TARGET:g} %)")

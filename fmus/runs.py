@@ -225,6 +225,34 @@ class FastSlave:
         getter = self.slave.getReal if self.fmi_version == 2 else self.slave.getFloat64
         return np.array(getter(references))
 
+    @property
+    def can_serialize_state(self) -> bool:
+        """Whether the FMU declares that it can get, set and serialize its state."""
+        cs = self.description.coSimulation
+        return bool(cs.canGetAndSetFMUstate and cs.canSerializeFMUstate)
+
+    def serialize_state(self) -> bytes:
+        """The instance's whole state as the FMU serializes it (fmi2SerializeFMUstate /
+        fmi3SerializeFMUState): what restore_state takes, in this or another instance."""
+        state = self.slave.getFMUState()
+        try:
+            return self.slave.serializeFMUState(state)
+        finally:
+            self.slave.freeFMUState(state)
+
+    def restore_state(self, data: bytes) -> None:
+        """Put the instance into a state from serialize_state. The FMU checks the bytes first
+        (ours refuse another build's, a truncated or a corrupted state, and leave the instance
+        as it was): fmpy's exception on refusal; the FMU logs why."""
+        deserialize = self.slave.deSerializeFMUstate if self.fmi_version == 2 \
+            else self.slave.deserializeFMUState
+        state = deserialize(bytes(data))
+        try:
+            self.slave.setFMUState(state)
+        finally:
+            self.slave.freeFMUState(state)
+        self.outputs()  # the output buffer from the restored values, as a step leaves it
+
     def close(self) -> None:
         """Terminate and free the instance, unload the binary, remove the unzip folder."""
         if self.slave is not None:

@@ -182,6 +182,13 @@ class LinearJointServo:
         self._kp = design.position_gain_1_s
         self._per_velocity = 1.0 / design.model.velocity_gain_m_s
 
+    def state(self) -> tuple[()]:
+        """Nothing carries from one step to the next (JointServo's interface)."""
+        return ()
+
+    def set_state(self) -> None:
+        """Continue from a `state()`: there is nothing to set."""
+
     def velocity_command(self, x_ref: float, v_ref: float, a_ref: float, x: float,
                          force: float) -> float:
         """Commanded piston velocity v_ref + K_p (x_ref - x) (m/s)."""

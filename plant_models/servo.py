@@ -273,6 +273,16 @@ class JointServo:
         self._filtered = 0.0
         self._last: float | None = None
 
+    def state(self) -> tuple[float, float | None]:
+        """What the law carries from one step to the next: the high-passed force (N) and the
+        last force sample it filtered (N; None before the first step)."""
+        return self._filtered, self._last
+
+    def set_state(self, filtered_n: float, last_n: float | None) -> None:
+        """Continue from a `state()` (a resumed run)."""
+        self._filtered = float(filtered_n)
+        self._last = None if last_n is None else float(last_n)
+
     def velocity_command(self, x_ref: float, v_ref: float, a_ref: float, x: float,
                          force: float) -> float:
         """Commanded piston velocity w (m/s); advances the filter by one step."""

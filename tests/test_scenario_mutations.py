@@ -1,7 +1,10 @@
 """No hang, no nonsense, no late failure: a few hundred mutations of the paper scenario, made
 through the API (`scenario_from_dict`), each either load and dig one period without error, or are
 refused at load with a ScenarioError that names a field (the CLI's one line, exit status 2).
-Never a traceback of another kind, never a runtime failure once the run log exists.
+Never a traceback of another kind, never a runtime failure once the run log exists, but the one
+a run is meant to end with when its arm does not follow its path (a few mutations, such as a
+valve a thousand times too small, dig a period whose tracking error goes beyond the scenario's
+plant.max_tracking_error_deg: the run ends naming the joint instead of reporting the period).
 
 Hypothesis draws 1-3 mutations per case: a field of any table set to a scaled, shifted, extreme,
 wrong-typed or plant-set value, or removed. The cases are derandomized (the same set every run);
@@ -89,7 +92,7 @@ def _mutate(data: dict, field: tuple, how: tuple) -> None:
     table[last] = value
 
 
-STATS = {"loaded": 0, "refused": 0, "workspace_limit": 0, "fields": set()}
+STATS = {"loaded": 0, "refused": 0, "workspace_limit": 0, "tracking": 0, "fields": set()}
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -97,7 +100,8 @@ def report():
     start = time.perf_counter()
     yield
     print(f"\n{STATS['loaded'] + STATS['refused']} mutated scenarios: {STATS['loaded']} loaded "
-          f"and ran ({STATS['workspace_limit']} of them ended at the workspace limit), "
+          f"and ran ({STATS['workspace_limit']} of them ended at the workspace limit, "
+          f"{STATS['tracking']} beyond the tracking-error bound), "
           f"{STATS['refused']} refused at load (in {', '.join(sorted(STATS['fields']))}); "
           f"{time.perf_counter() - start:.1f} s")
 
@@ -118,7 +122,11 @@ def test_a_mutated_scenario_loads_and_digs_or_is_refused_naming_a_field(tmp_path
         return
     log = tmp_path / "run.mcap"
     result = run_campaign(scenario, log_path=log, overwrite=True)
-    assert result.termination in ("periods", "workspace_limit"), (mutations, result.message)
+    tracking = result.termination == "error" and result.message.startswith(
+        "period 1: TrackingError: ") and "(plant.max_tracking_error_deg)" in result.message
+    assert result.termination in ("periods", "workspace_limit") or tracking, \
+        (mutations, result.message)
+    STATS["tracking"] += tracking
     assert read_run(log).finished
     STATS["loaded"] += 1
     STATS["workspace_limit"] += result.termination == "workspace_limit"

@@ -30,12 +30,19 @@ from typing import Any
 import numpy as np
 
 from orchestrator.campaign.record import period_record, records_dataframe
+from orchestrator.campaign.resume_state import resume_record
 from orchestrator.campaign.watchdog import StepWatchdog
 from orchestrator.scenario.model import Scenario, load_scenario
-from planner.adaptation import Decision, initial_state, next_deepest_point
+from planner.adaptation import AdaptationState, Decision, initial_state, next_deepest_point
 from planner.trajectory import JointTrajectory
 from plant_models.geometry import Unreachable
-from plant_models.plant import JointReference, PeriodMeasurement, Plant, initial_pile_surface
+from plant_models.plant import (
+    JOINTS,
+    JointReference,
+    PeriodMeasurement,
+    Plant,
+    initial_pile_surface,
+)
 
 # End message of a campaign stopped from outside (Ctrl-C, SystemExit): its ending says nothing
 # about the campaign (orchestrator.review.replay does not compare it).
@@ -141,14 +148,39 @@ def run_campaign(
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
-    records: list[dict[str, Any]] = []
-    termination, message, error = "periods", "", None
     try:
         log = open_run_log(scenario, log_path, overwrite) if log_path is not None else None
     except BaseException:
         if plant is not None:
             plant.close()
         raise
+    return run_opened(scenario, log, plant, Start(), progress, step_timeout_s, on_step_timeout,
+                      Path(log_path) if log_path is not None else None)
+
+
+@dataclass(frozen=True)
+class Start:
+    """Where a campaign starts: at period 1 (the default), or after period k of a logged run
+    (orchestrator.campaign.resume) with its records, the next period's start time t0_s (s),
+    the adaptation state period k dug with and the mass weighed after it (kg)."""
+
+    k: int = 0
+    records: tuple[dict[str, Any], ...] = ()
+    t0_s: float = 0.0
+    state: AdaptationState | None = None
+    weighed_mass_kg: float = math.nan
+
+
+def run_opened(scenario: Scenario, log, plant: Plant | None, start: Start,
+               progress: Callable[[dict[str, Any]], None] | None = None,
+               step_timeout_s: float | None = None,
+               on_step_timeout: Callable[[str], None] | None = None,
+               log_path: Path | None = None) -> CampaignResult:
+    """run_campaign on an open log (a RunLog or None; log_path: its path) from `start`; the
+    result's records include start.records. The plant (built from the scenario when None) and
+    the log are closed at the end."""
+    records: list[dict[str, Any]] = list(start.records)
+    termination, message, error = "periods", "", None
 
     def hang(detail: str) -> None:  # the watchdog's thread; the main thread is in a step
         message = f"period {len(records) + 1}: {detail}"
@@ -164,7 +196,7 @@ def run_campaign(
         with watchdog:
             if plant is None:
                 plant = build_plant(scenario)
-            termination, message = _dig(scenario, plant, log, records, progress)
+            termination, message = _dig(scenario, plant, log, records, progress, start)
     except Exception as failure:
         termination, error = "error", failure
         period = len(records) + 1
@@ -173,18 +205,21 @@ def run_campaign(
         _close_all(plant, log, "error", INTERRUPTED)
         raise
     termination, message, error = _close_all(plant, log, termination, message, error)
-    return CampaignResult(records, termination, message, scenario,
-                          Path(log_path) if log_path is not None else None, error)
+    return CampaignResult(records, termination, message, scenario, log_path, error)
 
 
 def _dig(scenario: Scenario, plant: Plant, log, records: list,
-         progress: Callable[[dict[str, Any]], None] | None) -> tuple[str, str]:
+         progress: Callable[[dict[str, Any]], None] | None, start: Start) -> tuple[str, str]:
     planner = scenario.period_planner()
     rule, defaults = scenario.adaptation_rule(), scenario.adaptation_defaults()
     step_s = float(getattr(plant, "communication_step_s", scenario.plant.communication_step_s))
-    decision: Decision = initial_state(defaults, planner.reachable)
-    t0_s = 0.0
-    for k in range(1, scenario.periods + 1):
+    if start.state is None:
+        decision: Decision = initial_state(defaults, planner.reachable)
+    elif start.k < scenario.periods:  # what the run decided after period k, decided again
+        decision = next_deepest_point(start.state, start.weighed_mass_kg,
+                                      scenario.target_mass_kg, rule, defaults, planner.reachable)
+    t0_s = start.t0_s
+    for k in range(start.k + 1, scenario.periods + 1):
         if decision.terminated:
             return "workspace_limit", f"workspace limit after {k - 1} period(s)"
         state = decision.next_state
@@ -193,6 +228,7 @@ def _dig(scenario: Scenario, plant: Plant, log, records: list,
             raise RuntimeError(f"D = ({state.y_D}, {state.z_D}) m: {trajectory.reason}")
         try:
             measurement = plant.run_period(sample_reference(trajectory, step_s))
+            check_tracking(measurement, scenario.plant.max_tracking_error_deg)
         except Exception as failure:
             # A plant that stops mid-period may hand over what it measured: log it too.
             partial = getattr(failure, "partial", None)
@@ -208,7 +244,11 @@ def _dig(scenario: Scenario, plant: Plant, log, records: list,
             surface = initial_pile_surface(plant) if k == 1 else None
             if surface is not None:  # so that viewers draw the pile from t = 0
                 log.log_pile_surface(*surface, t_s=0.0)
-            log.log_period(record, measurement, t0_s)
+            saved = resume_record(plant, state, measurement.weighed_mass_kg,
+                                  t0_s + float(measurement.t_s[-1]))
+            # Without a state (a plant that cannot save one), the call of a log without them.
+            log.log_period(record, measurement, t0_s,
+                           **({} if saved is None else {"resume_state": saved}))
         records.append(record)
         if progress is not None:
             progress(record)
@@ -218,6 +258,30 @@ def _dig(scenario: Scenario, plant: Plant, log, records: list,
                                           scenario.target_mass_kg, rule, defaults,
                                           planner.reachable)
     return "periods", f"{scenario.periods} period(s) dug"
+
+
+class TrackingError(RuntimeError):
+    """A period whose tracking error went beyond the scenario's bound; `partial` holds its
+    measurement (logged without a period record: its numbers are not reported)."""
+
+    def __init__(self, message: str, partial: PeriodMeasurement) -> None:
+        super().__init__(message)
+        self.partial = partial
+
+
+def check_tracking(measurement: PeriodMeasurement, bound_deg: float) -> None:
+    """TrackingError when a joint's |measured - reference| angle exceeds bound_deg (deg)
+    anywhere in the period: an arm that does not follow its path digs numbers that mean
+    nothing (plant.max_tracking_error_deg)."""
+    error = np.abs(np.asarray(measurement.joints_rad) - np.asarray(measurement.reference_rad))
+    peaks = np.degrees(error.max(axis=0))
+    joint = int(np.argmax(peaks))
+    if peaks[joint] > bound_deg:
+        at_s = float(np.asarray(measurement.t_s)[int(np.argmax(error[:, joint]))])
+        raise TrackingError(
+            f"the {JOINTS[joint]} joint's tracking error reached {peaks[joint]:.3g} deg at "
+            f"t = {at_s:.2f} s, beyond the bound of {bound_deg:g} deg "
+            "(plant.max_tracking_error_deg)", measurement)
 
 
 def sample_reference(trajectory: JointTrajectory, step_s: float) -> JointReference:

@@ -139,12 +139,17 @@ def fmus_demo() -> None:
 
 @app.command("run", cls=Command)
 def run(
-    scenario: Annotated[Path, typer.Argument(
-        metavar="SCENARIO.toml", help="Scenario file, e.g. scenarios/paper-2020.toml.")],
+    scenario: Annotated[Path | None, typer.Argument(
+        metavar="SCENARIO.toml", help="Scenario file, e.g. scenarios/paper-2020.toml.")] = None,
     output: Annotated[
         Path | None,
         typer.Option("-o", "--output", metavar=RUN_LOG, help="Log to write (default: a new "
                      "runs/<scenario>-<UTC time>-<scenario hash>.mcap)."),
+    ] = None,
+    resume: Annotated[
+        Path | None, typer.Option("--resume", metavar=RUN_LOG, help="Continue the killed or "
+                                  "interrupted run of this log after its last complete period "
+                                  "(its own scenario; the log is replaced unless -o).")
     ] = None,
     periods: Annotated[
         int | None, typer.Option("--periods", metavar="N", help="Dig N periods (at least 1).")
@@ -178,19 +183,25 @@ def run(
                             "does not return within S seconds (0: never).")
     ] = 30.0,
 ) -> None:
-    """Run a digging campaign: plan, dig and weigh period after period; log it to MCAP."""
+    """Run a digging campaign (or go on with a stopped one: --resume): plan, dig and weigh
+    period after period; log it to MCAP."""
     from orchestrator.cli import run as run_command
     from orchestrator.cli.lab import run_overrides
 
     if as_json and quiet:
         _fail("--json and --quiet exclude each other", 2)
-    lab_items, problem = run_overrides(plant, emulate)
-    if problem is not None:
-        _fail(problem, 2)
-    items = [*lab_items, *(overrides or []),
-             *([f"periods={periods}"] if periods is not None else [])]
-    failure = run_command.run(scenario, output, items, as_json=as_json, quiet=quiet,
-                              force=force, trust=trust, step_timeout_s=step_timeout)
+    if resume is not None or scenario is None:  # the scenario then comes from the log
+        failure = run_command.resume(resume, output, (scenario, overrides, periods, plant,
+                                     emulate), as_json=as_json, quiet=quiet, force=force,
+                                     trust=trust, step_timeout_s=step_timeout)
+    else:
+        lab_items, problem = run_overrides(plant, emulate)
+        if problem is not None:
+            _fail(problem, 2)
+        items = [*lab_items, *(overrides or []),
+                 *([f"periods={periods}"] if periods is not None else [])]
+        failure = run_command.run(scenario, output, items, as_json=as_json, quiet=quiet,
+                                  force=force, trust=trust, step_timeout_s=step_timeout)
     if failure is not None:
         _fail(*failure)
 

@@ -57,7 +57,9 @@ def review_run(path: Path, as_json: bool, plots: Path | None, period: int,
         out = tables.console()
         out.print(f"{data['scenario']} ({data['plant']} plant): {data['description']}",
                   markup=False, soft_wrap=True)
-        out.print(f"target {data['target_mass_kg']:g} kg; {review.ending(data)}",
+        resumed = data["resumed_after_period"]
+        resumed = f" (resumed after period {resumed})" if resumed is not None else ""
+        out.print(f"target {data['target_mass_kg']:g} kg; {review.ending(data)}{resumed}",
                   markup=False, soft_wrap=True)
         for line in role_lines(data):
             out.print(line, markup=False, soft_wrap=True)

@@ -7,6 +7,10 @@ file that is not ours without --trust); 1 for a runtime failure, whose MCAP log 
 up to the last finished period; 130 for Ctrl-C and 143 for SIGTERM (orchestrator.cli.signals),
 which both close the log after the last finished period with its end record, remove the FMUs'
 temporary folders and say in one line how many periods were done and where the log is.
+
+`run --resume RUN.mcap` continues such a run after its last complete period
+(orchestrator.campaign.resume), with the same exit statuses; a log that cannot be resumed is a
+mistake (2), one whose run finished is "nothing to resume" (0).
 """
 
 from __future__ import annotations
@@ -89,6 +93,65 @@ def run(scenario_path: Path, output: Path | None, overrides: list[str], *, as_js
 _OUTSIDE = "while loading the scenario or printing the results; no period was cut"
 
 
+def resume(log: Path | None, output: Path | None, given: tuple, *, as_json: bool = False,
+           quiet: bool = False, force: bool = False, trust: bool = False,
+           step_timeout_s: float = STEP_TIMEOUT_S) -> tuple[str, int] | None:
+    """`run --resume LOG`: continue the logged run after its last complete period
+    (orchestrator.campaign.resume), in place or into `output`; None on success, else (one
+    line, exit status). given: (SCENARIO.toml, --set, --periods, --plant, --emulate) as given,
+    none of which may be (the run goes on as it was logged). A run that finished: one line
+    "nothing to resume", exit status 0."""
+    names = ("SCENARIO.toml", "--set", "--periods", "--plant", "--emulate")
+    extra = [name for name, value in zip(names, given, strict=True)
+             if value is not None and value is not False]
+    if log is None:
+        return "missing argument 'SCENARIO.toml' (see 'excosim run -h')", 2
+    if extra:
+        return (f"--resume continues the run as its log recorded it: no {', '.join(extra)} "
+                "with it"), 2
+    if not (math.isfinite(step_timeout_s) and step_timeout_s >= 0.0):
+        return f"--step-timeout must be a number of seconds >= 0, got {step_timeout_s!r}", 2
+    with terminate_like_ctrl_c():
+        try:
+            return _resume(log, output, as_json=as_json, quiet=quiet, force=force, trust=trust,
+                           step_timeout_s=step_timeout_s)
+        except Terminated:
+            return f"terminated (SIGTERM) {_OUTSIDE}", TERMINATED_EXIT
+        except KeyboardInterrupt:
+            return f"interrupted {_OUTSIDE}", INTERRUPTED_EXIT
+
+
+def _resume(log: Path, output: Path | None, *, as_json: bool, quiet: bool, force: bool,
+            trust: bool, step_timeout_s: float) -> tuple[str, int] | None:
+    import fmus
+    from orchestrator.campaign.resume import NothingToResume, ResumeRefused, prepare_resume
+    from orchestrator.cli.trust import trust_problem
+    from orchestrator.scenario import ScenarioError
+
+    try:
+        source = prepare_resume(log)
+    except NothingToResume as finished:
+        if as_json:
+            print(json_text({"path": str(log), "resumed": False, "message": str(finished)}))
+        elif not quiet:
+            print(finished)
+        return None
+    except (ResumeRefused, ScenarioError) as error:
+        return str(error), 2
+    except fmus.BuildError as error:
+        return str(error), 1
+    refused = trust_problem(source.scenario, trust, quiet)
+    if refused is not None:
+        return refused
+    in_place = output is None or (output.exists() and output.resolve() == log.resolve())
+    if not in_place:
+        problem = _check_output(output, force)
+        if problem is not None:
+            return problem, 2
+    return _dig(source.scenario, log if in_place else output, reserved=False, force=force,
+                as_json=as_json, quiet=quiet, step_timeout_s=step_timeout_s, resume=source)
+
+
 def _run(scenario_path: Path, output: Path | None, overrides: list[str], *, as_json: bool,
          quiet: bool, force: bool, trust: bool, step_timeout_s: float) -> tuple[str, int] | None:
     import fmus
@@ -119,17 +182,21 @@ def _run(scenario_path: Path, output: Path | None, overrides: list[str], *, as_j
 
 
 def _dig(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_json: bool,
-         quiet: bool, step_timeout_s: float) -> tuple[str, int] | None:
+         quiet: bool, step_timeout_s: float, resume: Any = None) -> tuple[str, int] | None:
+    """Run the campaign (or resume the ResumeSource `resume`) with a progress bar, print the
+    results; None on success, else (one line, exit status)."""
     from orchestrator.campaign import run_campaign
+    from orchestrator.campaign.resume import ResumeRefused, resume_campaign
 
     err = Console(stderr=True, highlight=False)
-    done: list[dict[str, Any]] = []
+    done: list[dict[str, Any]] = list(resume.records) if resume is not None else []
     columns = (TextColumn("[progress.description]{task.description}"), BarColumn(),
                MofNCompleteColumn(), TimeElapsedColumn())
     try:
         with Progress(*columns, console=err, transient=True,
                       disable=quiet or not err.is_terminal) as bar:
-            task = bar.add_task(f"{scenario.name}: period 1", total=scenario.periods)
+            task = bar.add_task(f"{scenario.name}: period {len(done) + 1}",
+                                total=scenario.periods, completed=len(done))
 
             def progress(record: dict[str, Any]) -> None:
                 done.append(record)
@@ -144,10 +211,15 @@ def _dig(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_json:
                 sys.stderr.flush()
                 os._exit(1)  # the main thread is stuck in native code: nothing else ends it
 
-            # A reserved default name is an empty file of ours: writing over it is no loss.
-            result = run_campaign(scenario, log_path=log_path, progress=progress,
-                                  overwrite=force or reserved, step_timeout_s=step_timeout_s,
-                                  on_step_timeout=stuck)
+            if resume is not None:
+                result = resume_campaign(resume, log_path, progress=progress, overwrite=force,
+                                         step_timeout_s=step_timeout_s, on_step_timeout=stuck)
+            else:  # a reserved default name is an empty file of ours: no loss to write over
+                result = run_campaign(scenario, log_path=log_path, progress=progress,
+                                      overwrite=force or reserved,
+                                      step_timeout_s=step_timeout_s, on_step_timeout=stuck)
+    except ResumeRefused as error:
+        return str(error), 2
     except KeyboardInterrupt:
         return _interrupted(log_path, len(done), scenario.periods, reserved), INTERRUPTED_EXIT
     except Terminated:
@@ -158,12 +230,17 @@ def _dig(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_json:
     except OSError as error:
         _drop_if_empty(log_path, reserved)
         return f"output {str(log_path)!r}: cannot write it: {error.strerror or error}", 2
+    resumed = f"resumed after period {resume.k}: " if resume is not None else ""
     if as_json:
-        print(json_text(run_json(result, log_path)))
+        payload = run_json(result, log_path)
+        if resume is not None:
+            payload["resumed_after_period"] = resume.k
+        print(json_text(payload))
     elif not quiet:
         out = tables.console()
         tables.show(out, period_grid(result.records, scenario.target_mass_kg))
-        out.print(summary_line(result, scenario.target_mass_kg), markup=False, soft_wrap=True)
+        out.print(resumed + summary_line(result, scenario.target_mass_kg), markup=False,
+                  soft_wrap=True)
     if result.termination == "error":
         return (f"run failed: {result.message} (log {log_path} is readable up to period "
                 f"{len(result.records)})"), 1

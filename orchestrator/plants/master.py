@@ -230,6 +230,7 @@ class Component:
         """(n_inputs,) buffer, role input order: write here, then step()."""
         self.conversions = dict(conversions or {})
         """role -> PortMap of the ports converted between the FMU's units and SI."""
+        self._refresh = self._slave.outputs  # refills `outputs` from the FMU
         if not (self.missing_outputs or self.missing_inputs or self.conversions or self.derived):
             self.outputs: np.ndarray = self._slave.outputs()
             """(n_outputs,) buffer, role output order, refreshed by every step()."""
@@ -259,6 +260,7 @@ class Component:
 
             inputs[in_slots] = in_scale * slave_in + in_offset  # the start values, in SI
             refresh()
+            self._refresh = refresh
 
             def step(t_s: float, h_s: float) -> None:
                 slave_in[:] = (inputs[in_slots] - in_offset) / in_scale
@@ -272,6 +274,22 @@ class Component:
         if self._slave.slave is None:
             raise RuntimeError(f"{self.name}: the FMU instance is closed")
         return self._slave.read(names)
+
+    @property
+    def can_save_state(self) -> bool:
+        """Whether the FMU can serialize its state (save_state, restore_state)."""
+        return self._slave.can_serialize_state
+
+    def save_state(self) -> bytes:
+        """The FMU instance's state, serialized by the FMU (fmus.runs.FastSlave)."""
+        return self._slave.serialize_state()
+
+    def restore_state(self, data: bytes) -> None:
+        """Put the instance into a state from save_state and refill `outputs` from it (as the
+        step that reached the state left them). The FMU validates the bytes; fmpy's
+        exception when it refuses them."""
+        self._slave.restore_state(data)
+        self._refresh()
 
     def close(self) -> None:
         """Terminate and free the instance; safe twice. Stepping afterwards is a RuntimeError

@@ -39,6 +39,7 @@ from orchestrator.plants.arm_coupling import ArmCoupling
 from orchestrator.plants.arm_dynamics import ArmInertia
 from orchestrator.plants.identify import CylinderIdentification, identify_cylinder
 from orchestrator.plants.master import Master, check_component, fmu_path, port_conversions
+from orchestrator.plants.plant_state import ResumableState
 from plant_models.cylinder_model import CylinderModel
 from plant_models.hydraulics import reflected_mass_kg
 from plant_models.linear_cylinder import LinearCylinderModel
@@ -65,8 +66,9 @@ def _start_values(description) -> dict[str, float]:
     return values
 
 
-class SimulatedExcavator:
-    """Plant of kind "sim" (see the module docstring). Use as a context manager or close()."""
+class SimulatedExcavator(ResumableState):
+    """Plant of kind "sim" (see the module docstring). Use as a context manager or close();
+    resume_state() / restore_state() save and restore what carries across periods."""
 
     kind = "sim"
 
@@ -162,6 +164,7 @@ class SimulatedExcavator:
                                           strict=True)}
         start["pile"] = {"tip_y": tip_y, "tip_z": tip_z, "bucket_angle": -angle, "dump": 0.0}
         self._master = Master(components, cfg.communication_step_s, start)
+        self._start_pose = tuple(float(angle) for angle in pose)
         self._servos = tuple(JointServo(d) if isinstance(d, ServoDesign) else LinearJointServo(d)
                              for d in self.servo_designs)
         profile, grid = self._profile()

@@ -72,7 +72,8 @@ def summary(run: RunFile) -> dict[str, Any]:
     versions (package versions the run used), fmus (component -> file sha256), roles (component
     -> {"fmu", "file", "sha256", "content_sha256", "parameters", "ports"}: which model filled
     each role; content_sha256, the FMU's identity, is absent in older logs), overrides
-    (the `--set` items applied to the scenario file).
+    (the `--set` items applied to the scenario file), resumed_after_period (the period after
+    which `excosim run --resume` last took the run over; None if it never did).
     """
     description = run.metadata["excosim.run"]
     try:
@@ -95,7 +96,15 @@ def summary(run: RunFile) -> dict[str, Any]:
         "fmus": dict(run.metadata.get("excosim.fmus", {})),
         "roles": roles(run),
         "overrides": _json_list(description.get("overrides", "[]")),
+        "resumed_after_period": _resumed(run),
     }
+
+
+def _resumed(run: RunFile) -> int | None:
+    try:
+        return int(run.metadata["excosim.resumed"]["after_period"])
+    except (KeyError, ValueError):
+        return None
 
 
 def _json_list(text: str) -> list:

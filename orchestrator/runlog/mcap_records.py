@@ -17,6 +17,7 @@ reads up to that point.
 
 from __future__ import annotations
 
+import io
 import os
 import struct
 import zlib
@@ -24,7 +25,7 @@ from collections import defaultdict
 from typing import BinaryIO
 
 import zstandard
-from mcap.data_stream import RecordBuilder
+from mcap.data_stream import ReadDataStream, RecordBuilder
 from mcap.opcode import Opcode
 from mcap.records import (
     Attachment,
@@ -53,6 +54,27 @@ class McapChunkWriter:
 
     def __init__(self, stream: BinaryIO, *, library: str, profile: str = "",
                  compression_level: int = -1) -> None:
+        self._empty(stream, compression_level)
+        self._write(MAGIC)
+        self._write_record(Header(profile=profile, library=library))
+
+    @classmethod
+    def continued(cls, stream: BinaryIO, prefix: bytes, compression_level: int = -1
+                  ) -> McapChunkWriter:
+        """A writer that first writes `prefix`, the data section of a file this writer began
+        (magic, Header, then whole records, each chunk followed by all its message indexes),
+        and then goes on as the writer that wrote it would have: the same schema and channel
+        ids, sequence numbers, chunk, attachment and metadata indexes, statistics and data
+        CRC. ValueError when the prefix is not such a data section."""
+        self = cls.__new__(cls)
+        self._empty(stream, compression_level)
+        if not prefix.startswith(MAGIC):
+            raise ValueError("the prefix does not start with the MCAP magic")
+        self._index_records(memoryview(prefix))
+        self._write(prefix)
+        return self
+
+    def _empty(self, stream: BinaryIO, compression_level: int) -> None:
         self._stream = stream
         self._offset = 0
         self._data_crc = 0  # CRC-32 of every byte from the magic up to DataEnd (the spec's)
@@ -66,8 +88,71 @@ class McapChunkWriter:
         self._message_counts: dict[int, int] = defaultdict(int)
         self._start_time: int | None = None
         self._end_time = 0
-        self._write(MAGIC)
-        self._write_record(Header(profile=profile, library=library))
+
+    def _index_records(self, data: memoryview) -> None:
+        """What the writer knows after writing `data` (a data section; see `continued`)."""
+        pos, chunk = len(MAGIC), None
+        while pos < len(data):
+            if pos + _RECORD_PREFIX.size > len(data):
+                raise ValueError(f"the prefix ends inside a record at byte {pos}")
+            opcode, length = _RECORD_PREFIX.unpack_from(data, pos)
+            end = pos + _RECORD_PREFIX.size + length
+            if end > len(data):
+                raise ValueError(f"the prefix ends inside a record at byte {pos}")
+            body = ReadDataStream(io.BytesIO(bytes(data[pos + _RECORD_PREFIX.size:end])))
+            if opcode == Opcode.SCHEMA:
+                self._schemas.append(Schema.read(body))
+            elif opcode == Opcode.CHANNEL:
+                self._channels.append(Channel.read(body))
+            elif opcode == Opcode.METADATA:
+                self._metadata_indexes.append(MetadataIndex(offset=pos, length=end - pos,
+                                                            name=Metadata.read(body).name))
+            elif opcode == Opcode.ATTACHMENT:
+                record = Attachment.read(body)
+                self._attachment_indexes.append(AttachmentIndex(
+                    offset=pos, length=end - pos, log_time=record.log_time,
+                    create_time=record.create_time, data_size=len(record.data),
+                    name=record.name, media_type=record.media_type))
+            elif opcode == Opcode.CHUNK:
+                chunk = self._chunk_index(data, pos, end)
+            elif opcode == Opcode.MESSAGE_INDEX and chunk is not None:
+                channel_id, entries = struct.unpack_from("<HI", data, pos + 9)
+                chunk.message_index_offsets[channel_id] = pos
+                chunk.message_index_length += end - pos
+                self._message_counts[channel_id] += entries // 16
+                # This writer reserves exactly one sequence number per message it writes.
+                self._sequences[channel_id] += entries // 16
+            elif opcode not in (Opcode.HEADER, Opcode.MESSAGE_INDEX):
+                raise ValueError(f"unexpected record (opcode {opcode:#x}) in a data section")
+            pos = end
+        for records in (self._schemas, self._channels):
+            if [record.id for record in records] != list(range(1, len(records) + 1)):
+                raise ValueError("schema and channel ids are not this writer's (1, 2, ...)")
+
+    def _chunk_index(self, data: memoryview, pos: int, end: int) -> ChunkIndex:
+        start_time, end_time, size = struct.unpack_from("<QQQ", data, pos + 9)
+        (name_length,) = struct.unpack_from("<I", data, pos + 9 + 28)
+        compression = bytes(data[pos + 9 + 32:pos + 9 + 32 + name_length]).decode()
+        (compressed,) = struct.unpack_from("<Q", data, pos + 9 + 32 + name_length)
+        chunk = ChunkIndex(
+            message_start_time=start_time, message_end_time=end_time, chunk_start_offset=pos,
+            chunk_length=end - pos, message_index_offsets={}, message_index_length=0,
+            compression=compression, compressed_size=compressed, uncompressed_size=size)
+        self._chunk_indexes.append(chunk)
+        self._start_time = start_time if self._start_time is None \
+            else min(self._start_time, start_time)
+        self._end_time = max(self._end_time, end_time)
+        return chunk
+
+    @property
+    def schemas(self) -> tuple[Schema, ...]:
+        """The schemas registered so far, by id (1, 2, ...)."""
+        return tuple(self._schemas)
+
+    @property
+    def channels(self) -> tuple[Channel, ...]:
+        """The channels registered so far, by id (1, 2, ...)."""
+        return tuple(self._channels)
 
     def _write(self, data: bytes) -> None:
         self._stream.write(data)

@@ -77,6 +77,10 @@ class RunFile:
     termination_message come from it (None if not finished).
     truncated: the file ends inside a record, lacks its footer or has a damaged chunk (a
     killed run); everything before that point was read.
+    resume_states: period k -> the JSON bytes of its /resume message (what a resumed run
+    continues from: orchestrator.campaign.resume), for the periods that have one.
+    period_chunks: per period, the file offsets [start, end) of the chunk record that holds its
+    /period record.
     """
 
     path: Path
@@ -90,6 +94,8 @@ class RunFile:
     termination: str | None = None
     termination_message: str | None = None
     truncated: bool = False
+    resume_states: dict[int, bytes] = field(default_factory=dict)
+    period_chunks: list[tuple[int, int]] = field(default_factory=list)
 
     @property
     def scenario(self) -> dict:
@@ -148,6 +154,8 @@ class _Scan:
         self.run.message_counts[topic] = self.run.message_counts.get(topic, 0) + 1
         if topic == "/period":
             self.period(body[_MESSAGE_DATA:], log_time)
+        elif topic == "/resume":  # after its period's record, in the same chunk
+            self.run.resume_states[len(self.run.periods)] = bytes(body[_MESSAGE_DATA:])
         elif topic in self.collect:
             self.collected.setdefault(channel_id, []).append(
                 (len(self.run.periods) + 1, log_time, bytes(body[_MESSAGE_DATA:])))
@@ -211,7 +219,7 @@ class _Scan:
             wanted = []
             for channel, offsets in index.items():
                 topic = self.topics[channel]
-                if topic == "/period" or topic in self.collect:
+                if topic in ("/period", "/resume") or topic in self.collect:
                     wanted.append(offsets)
                 else:
                     self.run.message_counts[topic] = self.run.message_counts.get(topic, 0)
@@ -263,7 +271,7 @@ def _scan(path: Path, data: bytes, collect: frozenset[str]) -> tuple[_Scan, bool
     scan = _Scan(run, collect)
     view = memoryview(data)
     pos = len(MAGIC)
-    chunk, index = None, {}
+    chunk, index, span = None, {}, (0, 0)
     while pos + _RECORD_PREFIX.size <= len(data):
         opcode, length = _RECORD_PREFIX.unpack_from(view, pos)
         end = pos + _RECORD_PREFIX.size + length
@@ -280,10 +288,11 @@ def _scan(path: Path, data: bytes, collect: frozenset[str]) -> tuple[_Scan, bool
             chunk, index = None, {}
             if damaged:
                 return scan, False
+            _spans(run, span)
         if opcode == Opcode.FOOTER:
             return scan, data[end:end + len(MAGIC)] == MAGIC
         if opcode == Opcode.CHUNK:
-            chunk = body
+            chunk, span = body, (pos, end)
         elif opcode == Opcode.SCHEMA:
             scan.schema(bytes(body))
         elif opcode == Opcode.CHANNEL:
@@ -297,9 +306,14 @@ def _scan(path: Path, data: bytes, collect: frozenset[str]) -> tuple[_Scan, bool
             record = Attachment.read(ReadDataStream(io.BytesIO(bytes(body))))
             run.attachments[record.name] = record.data
         pos = end
-    if chunk is not None:
-        scan.chunk(chunk, None)
+    if chunk is not None and scan.chunk(chunk, None):
+        _spans(run, span)
     return scan, False
+
+
+def _spans(run: RunFile, span: tuple[int, int]) -> None:
+    """The chunk at `span` holds the records of the periods read since the last chunk."""
+    run.period_chunks.extend([span] * (len(run.periods) - len(run.period_chunks)))
 
 
 def read_run(path: str | Path, tolerant: bool = True, topics: Collection[str] = ()) -> RunFile:
@@ -314,6 +328,12 @@ def read_run(path: str | Path, tolerant: bool = True, topics: Collection[str] = 
         data = path.read_bytes()
     except OSError as exc:
         raise RunLogError(f"cannot read {path}: {exc.strerror}") from None
+    return parse_run(path, data, tolerant, topics)
+
+
+def parse_run(path: Path, data: bytes, tolerant: bool = True, topics: Collection[str] = ()
+              ) -> RunFile:
+    """read_run of the bytes `data` of the file at `path` (named in messages)."""
     if not data.startswith(MAGIC):
         raise RunLogError(f"{path} is not an MCAP file (it does not start with the MCAP magic)")
     try:

@@ -197,3 +197,46 @@ PERIOD_SUMMARY_SCHEMA: dict = {
     },
     "additionalProperties": True,
 }
+
+
+def _object(description: str, properties: dict) -> dict:
+    return {"type": "object", "description": description, "properties": properties,
+            "additionalProperties": True}
+
+
+# What `excosim run --resume` needs to continue after a period (orchestrator.campaign.resume),
+# on /resume in the period's own chunk: a period is in the file with its state or not at all.
+# The plant part is orchestrator.plants.plant_state's; FMU states are base64 strings of the
+# bytes the FMU serialized (its own format; ours carry a checksum and the build's GUID).
+RESUME_STATE_SCHEMA: dict = {"title": "excosim.ResumeState", **_object(
+    "What a resumed run needs to continue after this period (excosim run --resume)", {
+        "format": {"type": "integer", "description": "layout of this record (1)"},
+        "k": {"type": "integer", "minimum": 1, "description": "the period this state follows"},
+        "t0_next_s": _number("campaign time at the next period's start, s"),
+        "adaptation": _object("the adaptation state period k dug with", {
+            "y_D": _number("D's y, m"), "z_D": _number("D's z, m"),
+            "dz": _number("depth step dz of eq. 5, m"),
+            "flag": {"type": "boolean", "description": "D has been shifted"},
+            "k": {"type": "integer", "description": "period index"},
+        }),
+        "weighed_mass_kg": _number("the load cell's reading after period k, kg (the next "
+                                   "period's D follows from it)"),
+        "plant": _object("the simulated plant's state (orchestrator.plants.plant_state)", {
+            "format": {"type": "integer", "description": "layout of the plant state (1)"},
+            "fmus": _object("component -> its FMU's serialized state, base64", {
+                role: {"type": "string", "contentEncoding": "base64"}
+                for role in (*JOINTS, "pile")}),
+            "servos": _per_joint("each servo's filter state (pressure feedback), N"),
+            "load_cell_rng": _object("numpy bit generator state of the load-cell noise", {
+                "bit_generator": {"type": "string", "description": "e.g. PCG64"},
+                "state": _object("the generator's words", {
+                    "state": {"type": "integer"}, "inc": {"type": "integer"}}),
+                "has_uint32": {"type": "integer"}, "uinteger": {"type": "integer"},
+            }),
+            "steps": {"type": "integer", "description": "cylinder communication steps taken"},
+            "pile_time_s": _number("the pile FMU's time, s"),
+            "start_pose_rad": {"type": "array", "items": {"type": "number"}, "minItems": 3,
+                               "maxItems": 3,
+                               "description": "pose the FMUs were instantiated at, rad"},
+        }),
+    })}

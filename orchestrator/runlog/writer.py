@@ -12,6 +12,8 @@ topic               schema (encoding)         one message per
 =================== ========================= =================================================
 /period             excosim.PeriodSummary     period, at its end: the campaign's record
                     (JSON)
+/resume             excosim.ResumeState       period, at its end, after /period: what a
+                    (JSON)                    resumed run continues from (simulated plants)
 /joints             excosim.JointState        sample: reference and measured joints, rad
 /cylinder/<joint>   excosim.CylinderState     sample: signals <joint>.x, v, p_A, p_B, F, u, F_ext
 /pile/bucket        excosim.PileBucketState   sample: pile.* bucket outputs and tip.y/z/angle
@@ -28,7 +30,8 @@ frames), `excosim.scenario` (the resolved scenario as JSON), `excosim.versions`,
 (FMU file sha256 by name), `excosim.fmu_content` (FMU content hash by name:
 fmus.identity.content_hash, what an FMU is whatever its zip), `excosim.roles`,
 `excosim.fmu_attachments`, `excosim.geometry` (JSON) and, at close,
-`excosim.end` (termination, message, periods): a file without it is a run that did not finish.
+`excosim.end` (termination, message, periods): a file without it is a run that did not finish;
+`excosim.resumed` (after_period, source, source_ending) where a resumed run took over.
 Attachments: `scenario.toml` (the scenario file's text; `.json` or `.txt` if it is not TOML, see
 `excosim.run` "scenario_attachment") and `fmus/<file name>` (each distinct FMU once;
 `excosim.fmu_attachments` maps each FMU name to its attachment). Module map: metadata
@@ -42,6 +45,7 @@ import json
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 from foxglove.messages import FrameTransforms, SceneUpdate
@@ -67,6 +71,7 @@ from orchestrator.runlog.samples import (
 from orchestrator.runlog.schemas import (
     PERIOD_SUMMARY_SCHEMA,
     PILE_PROFILE,
+    RESUME_STATE_SCHEMA,
     DoubleMessage,
     file_descriptor_set,
 )
@@ -111,19 +116,11 @@ class RunLog:
             raise ValueError(f"sample_rate_hz must be > 0 or None, got {sample_rate_hz!r}")
         fmu_files = read_fmus(fmus)
         scenario_json = to_json(dict(scenario), "scenario")
-        self.path = Path(path)
         try:
-            stream = open(self.path, "wb" if overwrite else "xb")
+            stream = open(Path(path), "wb" if overwrite else "xb")
         except FileExistsError:
-            raise FileExistsError(f"run log {self.path} already exists") from None
-        self._geometry = geometry
-        self._rate_hz = float(transform_rate_hz)
-        self._sample_rate_hz = sample_rate_hz
-        self._fsync = fsync
-        self._periods = 0
-        self._closed = False
-        self._schemas: dict[str, int] = {}
-        self._channels: dict[tuple, int] = {}
+            raise FileExistsError(f"run log {path} already exists") from None
+        self._setup(path, geometry, transform_rate_hz, sample_rate_hz, fsync)
         library = f"excosim {package_versions()['excosim']}"
         self._writer = McapChunkWriter(stream, library=library)
         write_run_description(
@@ -133,6 +130,42 @@ class RunLog:
             derived=derived,
         )
         self._writer.flush(fsync)
+
+    def _setup(self, path: str | Path, geometry: ExcavatorGeometry | None,
+               transform_rate_hz: float, sample_rate_hz: float | None, fsync: bool) -> None:
+        self.path = Path(path)
+        self._geometry = geometry
+        self._rate_hz = float(transform_rate_hz)
+        self._sample_rate_hz = sample_rate_hz
+        self._fsync = fsync
+        self._periods = 0
+        self._closed = False
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[tuple, int] = {}
+
+    @classmethod
+    def continued(cls, stream: BinaryIO, prefix: bytes, *, path: str | Path, periods: int,
+                  note: Mapping[str, str], geometry: ExcavatorGeometry | None = None,
+                  transform_rate_hz: float = 25.0, sample_rate_hz: float | None = None,
+                  fsync: bool = False) -> RunLog:
+        """A run log that goes on from `prefix`, the first `periods` periods of a log this class
+        wrote (its data section up to the end of period `periods`'s chunk and message indexes:
+        orchestrator.runlog.resume), written to `stream` (closed at close()) and flushed with
+        the metadata record `excosim.resumed` (`note`) after it. The next log_period is period
+        periods + 1, on the same channels, as the run that wrote the prefix would have written
+        it. geometry, transform_rate_hz, sample_rate_hz, fsync: as the run's own (__init__).
+        ValueError when the prefix is not such a data section."""
+        self = cls.__new__(cls)
+        self._setup(path, geometry, transform_rate_hz, sample_rate_hz, fsync)
+        self._writer = McapChunkWriter.continued(stream, prefix)
+        for schema in self._writer.schemas:
+            self._schemas[schema.name] = schema.id
+        for channel in self._writer.channels:
+            self._channels[(channel.topic, tuple(sorted(channel.metadata.items())))] = channel.id
+        self._periods = periods
+        self._writer.add_metadata("excosim.resumed", dict(note))
+        self._writer.flush(True)  # the copy is on the disk before it may replace the original
+        return self
 
     # -- channels ---------------------------------------------------------------------------
 
@@ -156,26 +189,30 @@ class RunLog:
             self._channels[key] = self._writer.add_channel(topic, "protobuf", schema_id)
         return self._channels[key]
 
-    def _period_channel(self) -> int:
-        key = ("/period", ())
+    def _json_channel(self, topic: str, schema: dict) -> int:
+        key = (topic, ())
         if key not in self._channels:
-            schema = self._schema("excosim.PeriodSummary", "jsonschema",
-                                  json.dumps(PERIOD_SUMMARY_SCHEMA).encode())
-            self._channels[key] = self._writer.add_channel("/period", "json", schema)
+            schema_id = self._schema(schema["title"], "jsonschema", json.dumps(schema).encode())
+            self._channels[key] = self._writer.add_channel(topic, "json", schema_id)
         return self._channels[key]
 
     # -- periods ----------------------------------------------------------------------------
 
-    def log_period(self, record: Mapping, measurement: PeriodMeasurement, t0_s: float) -> None:
+    def log_period(self, record: Mapping, measurement: PeriodMeasurement, t0_s: float,
+                   resume_state: Mapping | None = None) -> None:
         """Write one period and flush it: `record` (any JSON-able dict; numpy values become
         lists) on /period, the measurement's samples at log time t0_s + t_s (s), the pile
-        profile and the 3D scene. t0_s: campaign time (s) at the period's start, >= 0."""
+        profile and the 3D scene; `resume_state` (JSON-able, schemas.RESUME_STATE_SCHEMA) on
+        /resume, after the record in the same chunk. t0_s: campaign time (s) at the period's
+        start, >= 0."""
         if self._closed:
             raise ValueError(f"run log {self.path} is closed")
         period = self._periods + 1
         if not isinstance(record, Mapping):
             raise ValueError(f"period {period} record must be a dict, got {type(record)}")
         record_json = to_json(dict(record), f"period {period} record").encode()
+        resume_json = None if resume_state is None else \
+            to_json(dict(resume_state), f"period {period} resume state").encode()
         period_data = decimated(checked(measurement), self._sample_rate_hz)
         chunk = ChunkBuilder()
         times, tip_path = self._add_samples(chunk, period_data, t0_s)
@@ -189,9 +226,13 @@ class RunLog:
             pile = self._foxglove_channel("/scene/pile", SceneUpdate)
             data = scene.pile_scene(end_ns, grid, profile, tip_path, self._geometry)
             chunk.add_message(pile, self._writer.reserve_sequence(pile, 1), end_ns, data)
-        channel = self._period_channel()
+        channel = self._json_channel("/period", PERIOD_SUMMARY_SCHEMA)
         chunk.add_message(channel, self._writer.reserve_sequence(channel, 1), end_ns,
                           record_json)
+        if resume_json is not None:
+            channel = self._json_channel("/resume", RESUME_STATE_SCHEMA)
+            chunk.add_message(channel, self._writer.reserve_sequence(channel, 1), end_ns,
+                              resume_json)
         self._writer.write_chunk(chunk)
         self._writer.flush(self._fsync)
         self._periods = period

@@ -42,7 +42,9 @@ class _ThisThreadsPrints(io.TextIOBase):
 
 
 @contextlib.contextmanager
-def _capture_this_thread(buffer: io.StringIO) -> Iterator[None]:
+def capture_this_thread(buffer: io.StringIO) -> Iterator[None]:
+    """Within the block, what this thread prints (fmpy's logger: the FMUs' messages) goes to
+    `buffer`; other threads print as before."""
     with _LOCK:
         stream = sys.stdout
         sys.stdout = _ThisThreadsPrints(stream, buffer)
@@ -75,7 +77,7 @@ def _probe(path: str, mtime_ns: int, size: int, start_values: tuple) -> str | No
     try:
         # fmpy's own logger prints "[ERROR] <message>" (its native proxy formats the FMU's
         # variadic message; a logger of our own would have to replace fmpy's process-wide one).
-        with _capture_this_thread(printed):
+        with capture_this_thread(printed):
             try:
                 unzip = extract(path, unzipdir=folder)
                 slave = FMU2Slave(guid=description.guid, unzipDirectory=unzip,

@@ -5,6 +5,7 @@ The bounds (docs/reliability.md):
 
 - target_mass_kg at most what the bucket holds: the pile's density x capacity (kg);
 - adaptation.z_D0_m below the ground at y_D0_m (the pile's z_surface0 plus its heap there);
+- the fuzzy rule can be built (its centres, the fractions times the target, strictly increasing);
 - plant.load_cell_noise_kg at most MAX_NOISE_FRACTION of the target;
 - the first period's plan at most MAX_PERIOD_S long, and at most MAX_STEPS_PER_PERIOD
   communication steps;
@@ -47,6 +48,12 @@ def check_values(scenario: Any, source: str, check_fmus: bool,
             raise ScenarioError(source, f"plant.{role}.parameters.{stroke_variable}",
                                 "the plant sets the initial stroke (x0) from the path's start "
                                 "pose; remove it")
+    try:  # fractions that validate one by one can still give equal centres (m* x 5e-324)
+        scenario.fuzzy_rule()
+    except ValueError as error:
+        field = "adaptation.centres_kg" if scenario.adaptation.centres_kg is not None \
+            else "adaptation.centre_fractions"
+        raise ScenarioError(source, field, f"the fuzzy rule cannot be built: {error}") from None
     noise, target = plant.load_cell_noise_kg, scenario.target_mass_kg
     if noise > MAX_NOISE_FRACTION * target:
         raise ScenarioError(source, "plant.load_cell_noise_kg",

@@ -199,11 +199,14 @@ class LogSection(Section):
 class PlantSection(Section):
     """kind "sim": the simulated excavator of the FMU tables; "lab": the lab excavator over CAN
     ([plant.lab], orchestrator.scenario.lab_section), whose emulated device uses the FMU tables
-    and communication_step_s too."""
+    and communication_step_s too. max_tracking_error_deg: the largest |measured - reference|
+    joint angle (deg) a period may reach; beyond it the campaign ends with termination "error"
+    naming the joint, without reporting the period (orchestrator.campaign.loop)."""
 
     kind: StrictStr
     communication_step_s: Number = Field(gt=0.0)
     load_cell_noise_kg: Number = Field(ge=0.0)
+    max_tracking_error_deg: Number = Field(gt=0.0)
     boom: FmuSection
     stick: FmuSection
     bucket: FmuSection

@@ -1,0 +1,202 @@
+"""Resume a simulated run from its log: continue after its last complete period so that the
+combined log is the uninterrupted run's, period for period (`excosim run --resume RUN.mcap`).
+
+Every period of a simulated run logs, in its own chunk after its record, the state to continue
+from (/resume: orchestrator.campaign.resume_state, orchestrator.plants.plant_state). A resume
+
+1. reads the log (tolerantly: a killed run's file ends inside the period it was digging) and
+   refuses a lab run (a real machine's state cannot be restored), a run that finished (nothing
+   to resume: NothingToResume) and a log without a resume state;
+2. validates the scenario the log records (`excosim.scenario`: the scenario file's text with
+   its `--set` items applied, resolved) as this version reads it, and checks that the FMUs it
+   would run now have the content hashes the log records (`excosim.fmu_content`): with other
+   FMUs it would not be the same run;
+3. builds the plant and restores the state logged after the last complete period k that has
+   one (each FMU validates its own serialized state);
+4. only then writes: the log's bytes up to period k, then periods k+1.. (orchestrator.runlog
+   .resume: in place by default, or into a new file).
+
+A run that ended in an error (an interrupt, a step timeout, a log that could not be written) is
+resumed from its last complete period too; a failure that the scenario itself causes then
+comes back at the same place. Refusals are ResumeRefused (one line), before anything is written.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from orchestrator.campaign.loop import CampaignResult, Start, build_plant, run_opened
+from orchestrator.campaign.resume_state import parse_resume_record
+from orchestrator.runlog.reader import RunFile, RunLogError, parse_run
+from orchestrator.scenario.model import Scenario
+
+FINISHED = ("periods", "workspace_limit")  # endings after which nothing is left to dig
+
+
+class ResumeRefused(ValueError):
+    """The log cannot be resumed; the message is one line."""
+
+
+class NothingToResume(Exception):
+    """The logged run finished; the message is one line."""
+
+
+@dataclass
+class ResumeSource:
+    """A log checked for resuming: its run, scenario, the period k to continue after, that
+    period's resume record (resume_state.parse_resume_record) and the log's bytes to keep
+    (orchestrator.runlog.resume.continuation_prefix)."""
+
+    path: Path
+    run: RunFile
+    scenario: Scenario
+    k: int
+    record: dict[str, Any]
+    prefix: bytes
+
+    @property
+    def records(self) -> list[dict[str, Any]]:
+        """The period records the resumed run keeps (periods 1..k)."""
+        return self.run.periods[:self.k]
+
+
+def prepare_resume(path: str | Path) -> ResumeSource:
+    """Check the log at `path` for resuming (steps 1-2 of the module docstring). Raises
+    ResumeRefused, NothingToResume, ScenarioError (its scenario does not validate with this
+    version) and fmus.BuildError (our FMUs cannot be built)."""
+    from orchestrator.runlog.resume import continuation_prefix
+    from orchestrator.scenario import scenario_from_dict
+
+    path = Path(path)
+    run, data = _read(path)
+    kind = run.metadata["excosim.run"].get("plant_kind")
+    if kind == "lab":
+        raise ResumeRefused(f"{path} is a lab run: the real excavator's state cannot be "
+                            "restored, so it cannot be resumed")
+    if kind != "sim":
+        raise ResumeRefused(f"{path}: plant kind {kind!r} cannot be resumed (only 'sim')")
+    if run.finished and run.termination in FINISHED:
+        n = len(run.periods)
+        how = f"dug all {n} planned periods" if run.termination == "periods" else \
+            f"stopped at the workspace limit after {n} periods"
+        raise NothingToResume(f"{path}: nothing to resume: the run finished ({how})")
+    candidates = [k for k in run.resume_states if 1 <= k <= len(run.period_chunks)]
+    if not candidates:
+        if not run.periods:
+            raise ResumeRefused(f"{path} holds no complete period: nothing to resume from "
+                                "(run the scenario again)")
+        raise ResumeRefused(f"{path} holds no resume state (a log of an older version, or of "
+                            "a plant whose FMUs cannot save their state): it cannot be resumed")
+    k = max(candidates)
+    try:
+        record = parse_resume_record(run.resume_states[k], k)
+    except ValueError as error:
+        raise ResumeRefused(f"{path}: the resume state after period {k}: {error}") from None
+    try:
+        scenario_data = run.scenario
+    except (KeyError, ValueError):
+        raise ResumeRefused(f"{path} holds no readable scenario record (excosim.scenario)"
+                            ) from None
+    scenario = scenario_from_dict(scenario_data, source=path.name)
+    if k > scenario.periods:
+        raise ResumeRefused(f"{path} holds {k} periods, more than its scenario's "
+                            f"{scenario.periods}")
+    _check_fmus(path, run, scenario)
+    try:
+        prefix = continuation_prefix(data, run.period_chunks[k - 1])
+    except (ValueError, IndexError) as error:
+        raise ResumeRefused(f"{path}: period {k}'s chunk: {error}") from None
+    return ResumeSource(path, run, scenario, k, record, prefix)
+
+
+def _read(path: Path) -> tuple[RunFile, bytes]:
+    import stat
+
+    try:
+        if not stat.S_ISREG(path.stat().st_mode):
+            raise ResumeRefused(f"{path} is not a regular file (a folder, FIFO or device)")
+        data = path.read_bytes()
+    except OSError as error:
+        raise ResumeRefused(f"cannot read {path}: {error.strerror or error}") from None
+    try:
+        return parse_run(path, data), data
+    except RunLogError as error:
+        raise ResumeRefused(str(error)) from None
+
+
+def _check_fmus(path: Path, run: RunFile, scenario: Scenario) -> None:
+    """ResumeRefused unless every FMU the scenario runs now has the content the log records."""
+    from fmus.identity import UnsafeArchive, content_hash
+    from orchestrator.plants.master import fmu_path
+
+    logged = run.metadata.get("excosim.fmu_content", {})
+    for role, spec in scenario.fmu_specs().items():
+        recorded = logged.get(role)
+        if not recorded:
+            raise ResumeRefused(f"{path} records no content hash for the {role} FMU: it "
+                                "cannot be checked, so it is not resumed")
+        fmu = fmu_path(spec, role)
+        try:
+            now = content_hash(fmu, f"plant.{role}.fmu: {fmu}")
+        except (OSError, UnsafeArchive) as error:
+            raise ResumeRefused(str(error).splitlines()[0]) from None
+        if now != recorded:
+            raise ResumeRefused(
+                f"{path}: the {role} FMU that would run now ({spec.fmu}, content "
+                f"{now[:12]}) is not the one the run used (content {recorded[:12]}); a run "
+                "resumed with other FMUs is not the same run")
+
+
+def resume_campaign(source: ResumeSource, output: str | Path | None = None, *,
+                    progress: Callable[[dict[str, Any]], None] | None = None,
+                    overwrite: bool = False, step_timeout_s: float | None = None,
+                    on_step_timeout: Callable[[str], None] | None = None) -> CampaignResult:
+    """Continue the run of `source` (prepare_resume) after its period k; the result holds
+    every period's record, 1.. (orchestrator.campaign.loop.run_campaign's result).
+
+    output: where the combined log goes (None or the source's path: in place; another path: a
+    new file, an existing one only with `overwrite`). progress, step_timeout_s,
+    on_step_timeout: as run_campaign's. ResumeRefused when the plant refuses the state (an FMU
+    that does not take its serialized state), OSError when the log cannot be made: nothing is
+    written then. After that it fails as run_campaign does (termination "error")."""
+    from orchestrator.runlog.metadata import package_versions
+    from orchestrator.runlog.resume import open_continued
+    from orchestrator.scenario.fmu_probe import capture_this_thread
+
+    scenario, record, k = source.scenario, source.record, source.k
+    plant = build_plant(scenario)
+    printed = io.StringIO()
+    try:
+        with capture_this_thread(printed):  # fmpy prints the FMU's reason for a refusal
+            plant.restore_state(record["plant"])
+    except ValueError as error:
+        plant.close()
+        logged = [line.partition("] ")[2] for line in printed.getvalue().splitlines()
+                  if line.startswith(("[ERROR]", "[FATAL]"))]
+        why = logged[0] if logged else (str(error.__cause__) if error.__cause__ else "")
+        raise ResumeRefused(f"{source.path}: the state after period {k}: {error}"
+                            + (f" ({why})" if why else "")) from None
+    except BaseException:
+        plant.close()
+        raise
+    run = source.run
+    ending = "killed (no end record)" if not run.finished else \
+        f"{run.termination}: {run.termination_message}"
+    note = {"after_period": str(k), "source": source.path.name, "source_ending": ending,
+            "excosim": package_versions()["excosim"]}
+    try:
+        log = open_continued(source.path, None if output is None else Path(output),
+                             source.prefix, periods=k, note=note, geometry=scenario.geometry(),
+                             sample_rate_hz=scenario.log.sample_rate_hz, overwrite=overwrite)
+    except BaseException:
+        plant.close()
+        raise
+    start = Start(k=k, records=tuple(source.records), t0_s=record["t0_next_s"],
+                  state=record["adaptation"], weighed_mass_kg=record["weighed_mass_kg"])
+    return run_opened(scenario, log, plant, start, progress, step_timeout_s, on_step_timeout,
+                      log.path)
+

@@ -1,0 +1,117 @@
+"""Continue a run log after its last complete period (`excosim run --resume`; the campaign side
+is orchestrator.campaign.resume).
+
+A run log cannot be appended to in place: a killed run's file may end inside a chunk (the
+period it was digging), and a finished or interrupted one ends with its end record and summary.
+So a resumed run writes a new file: the old file's bytes up to the end of the chunk of the
+period it resumes after (everything before it is whole records: metadata, attachments, the
+periods' chunks with their message indexes), that chunk's message indexes rebuilt from its
+records (the killed run may have written only some of them), then the metadata record
+`excosim.resumed`, then the new periods, as the writer that wrote the prefix would have
+written them (orchestrator.runlog.mcap_records.McapChunkWriter.continued). When the run was
+killed after it flushed a period, the copy's first bytes are the old file's.
+
+In place (the default), the copy is written under a temporary name in the log's folder, forced
+to the disk and renamed over the old file before the first new period is dug: at every moment
+the file at the log's path is a readable run log with at least the periods it had, so a
+resumed run that is killed again can be resumed again. With another output path the old file
+is left as it is.
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+import struct
+import tempfile
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+from mcap.opcode import Opcode
+
+from orchestrator.runlog.reader import _CHUNK_HEAD, _decompress
+from orchestrator.runlog.writer import RunLog
+from plant_models.geometry import ExcavatorGeometry
+
+_RECORD_PREFIX = struct.Struct("<BQ")
+
+
+def continuation_prefix(data: bytes, chunk: tuple[int, int]) -> bytes:
+    """The bytes of a run log `data` up to the end of the chunk record at `chunk` (offsets
+    [start, end)), followed by that chunk's message indexes rebuilt from its records: a data
+    section that McapChunkWriter.continued takes. ValueError for a chunk that is not whole."""
+    start, end = chunk
+    body = memoryview(data)[start + _RECORD_PREFIX.size:end]
+    _, _, size, _, name_length = _CHUNK_HEAD.unpack_from(body)
+    at = _CHUNK_HEAD.size
+    compression = bytes(body[at:at + name_length]).decode()
+    (length,) = struct.unpack_from("<Q", body, at + name_length)
+    at += name_length + 8
+    records = _decompress(compression, bytes(body[at:at + length]), size)
+    if records is None or len(records) != size:
+        raise ValueError(f"the chunk at byte {start} is damaged")
+    return data[:end] + message_indexes(records)
+
+
+def message_indexes(records: bytes) -> bytes:
+    """The MessageIndex records of a chunk's `records`: one per channel, in the order the
+    channels first appear, entries (log time, offset) sorted by time then offset (as
+    orchestrator.runlog.chunk.ChunkBuilder writes them)."""
+    entries: dict[int, list[tuple[int, int]]] = {}
+    pos = 0
+    while pos + _RECORD_PREFIX.size <= len(records):
+        opcode, length = _RECORD_PREFIX.unpack_from(records, pos)
+        if opcode == Opcode.MESSAGE:
+            channel, _, log_time = struct.unpack_from("<HIQ", records, pos + 9)
+            entries.setdefault(channel, []).append((log_time, pos))
+        pos += _RECORD_PREFIX.size + length
+    if pos != len(records):
+        raise ValueError("a chunk's records do not end where the chunk says")
+    out = []
+    for channel, pairs in entries.items():
+        table = np.array(sorted(pairs), dtype="<u8").tobytes()
+        out.append(_RECORD_PREFIX.pack(Opcode.MESSAGE_INDEX, 6 + len(table))
+                   + struct.pack("<HI", channel, len(table)) + table)
+    return b"".join(out)
+
+
+def open_continued(source: Path, output: Path | None, prefix: bytes, *, periods: int,
+                   note: Mapping[str, str], geometry: ExcavatorGeometry | None,
+                   sample_rate_hz: float | None, overwrite: bool = False) -> RunLog:
+    """The RunLog that continues `prefix` (continuation_prefix of `source`) after period
+    `periods`: at `output` (a new file; an existing one only with `overwrite`), or, with
+    output None or the source itself, in place (module docstring). OSError (FileExistsError)
+    when the file cannot be made; nothing is left behind then."""
+    settings = {"periods": periods, "note": note, "geometry": geometry,
+                "sample_rate_hz": sample_rate_hz}
+    if output is not None and not _same_file(source, output):
+        try:
+            stream = open(output, "wb" if overwrite else "xb")
+        except FileExistsError:
+            raise FileExistsError(f"run log {output} already exists") from None
+        try:
+            return RunLog.continued(stream, prefix, path=output, **settings)
+        except BaseException:
+            stream.close()
+            output.unlink(missing_ok=True)
+            raise
+    descriptor, temporary = tempfile.mkstemp(dir=source.parent, prefix=f".{source.name}.",
+                                             suffix=".resuming")
+    stream = os.fdopen(descriptor, "wb")
+    try:
+        os.chmod(temporary, stat.S_IMODE(source.stat().st_mode))
+        log = RunLog.continued(stream, prefix, path=source, **settings)  # flushed to the disk
+        os.replace(temporary, source)
+    except BaseException:
+        stream.close()
+        Path(temporary).unlink(missing_ok=True)
+        raise
+    return log
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return a.resolve() == b.resolve() or (b.exists() and os.path.samefile(a, b))
+    except OSError:
+        return False
