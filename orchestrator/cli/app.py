@@ -17,10 +17,9 @@ import typer
 from orchestrator.cli.conventions import (
     HELP_OPTIONS,
     PROG,
-    SHELLS,
     Command,
     Group,
-    completion_script,
+    completion,
     enable_completion,
     fail,
     version,
@@ -373,18 +372,7 @@ def emulate(
         _fail(*failure)
 
 
-@app.command("completion", cls=Command)
-def completion(
-    shell: Annotated[str, typer.Argument(metavar="SHELL", help=f"One of {', '.join(SHELLS)}.")],
-) -> None:
-    """Print the completion script of a shell (bash, zsh, fish).
-
-    Put `eval "$(excosim completion bash)"` in ~/.bashrc (zsh: the same in ~/.zshrc; fish:
-    `excosim completion fish | source` in ~/.config/fish/config.fish).
-    """
-    if shell not in SHELLS:
-        _fail(f"completion: unknown shell {shell!r}; known: {', '.join(SHELLS)}", 2)
-    print(completion_script(shell))
+app.command("completion", cls=Command)(completion)
 
 
 def main() -> None:

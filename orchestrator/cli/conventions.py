@@ -12,8 +12,9 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Sequence
-from typing import Any
+from typing import Annotated, Any
 
+import typer
 from rich.console import Console
 from typer.core import TyperArgument, TyperCommand, TyperGroup, TyperOption
 
@@ -157,3 +158,17 @@ def json_text(data: Any) -> str:
         return value
 
     return json.dumps(clean(data), allow_nan=False)
+
+
+def completion(
+    shell: Annotated[str, typer.Argument(metavar="SHELL", help=f"One of {', '.join(SHELLS)}.")],
+) -> None:
+    """Print the completion script of a shell (bash, zsh, fish).
+
+    Put `eval "$(excosim completion bash)"` in ~/.bashrc (zsh: the same in ~/.zshrc; fish:
+    `excosim completion fish | source` in ~/.config/fish/config.fish).
+    """
+    if shell not in SHELLS:
+        fail(f"completion: unknown shell {shell!r}; known: {', '.join(SHELLS)}")
+        raise typer.Exit(2)
+    print(completion_script(shell))
