@@ -236,10 +236,12 @@ def test_a_killed_run_replays_its_complete_periods(paper_run, tmp_path):
 def test_a_run_that_hit_the_workspace_limit_replays_to_the_same_end(runs):
     # A deep D0 and a target far above what the periods dig: the steps reach the long stick's
     # reach (z = -2.30 m at y = -9 m) in period 3, and the shift by 20 m is out of reach too. A
-    # bucket that never fills: a full one dragged deep pushes more spoil than it can cut.
+    # bucket that never fills: a full one dragged deep pushes more spoil than it can cut. That
+    # deep cut makes the bucket lag 19.6 deg in period 3: a bound of 30 deg lets the run reach
+    # its workspace limit (the bound's own test is tests/test_tracking_bound.py).
     path, records = _campaign(runs, "workspace", load_scenario(PAPER, [
         "periods=5", "adaptation.z_D0_m=-0.6", "adaptation.dy_0_m=20", "target_mass_kg=300",
-        "plant.pile.parameters.capacity=0.5"]))
+        "plant.pile.parameters.capacity=0.5", "plant.max_tracking_error_deg=30"]))
     assert read_run(path).termination == "workspace_limit" and len(records) < 5
     report = replay_run(path)
     _assert_repeats(report, records)

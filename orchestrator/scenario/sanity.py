@@ -128,7 +128,11 @@ def check_first_period(scenario: Any, source: str) -> None:
 
     planner = scenario.period_planner()
     defaults = scenario.adaptation_defaults()
-    decision = initial_state(defaults, planner.reachable)
+    try:
+        decision = initial_state(defaults, planner.reachable)
+    except (ValueError, ArithmeticError) as error:  # e.g. limits of 1e-308 deg/s: no spline
+        raise ScenarioError(source, "limits", f"the first period cannot be planned with these "
+                            f"limits and trajectory weights: {error}") from None
     if decision.terminated:
         result = planner.plan(defaults.y_D0, defaults.z_D0)
         reason = result.reason if isinstance(result, Unreachable) else "out of reach"
