@@ -147,9 +147,10 @@ class Scenario(Section):
 # lab: Figure 15's first period falls 3.5 kg short on fresh sand (scenarios/lab.toml).
 _TARGET_MASS_KG = {"paper": 30.0, "lab": 4.3}
 # The largest peak tracking error per period a run may reach, deg (plant.max_tracking_error_deg):
-# about twice the largest of the preset's scenarios and tests. paper: 3.2 deg in the paper
-# campaign, 5.6 deg with the Zelenin pile; lab: 51 deg when the simulated lab bucket stalls in
-# the sand (period 8 of scenarios/lab.toml, a run its reproduction test keeps).
+# above the preset's scenarios. paper: 3.2 deg in the paper campaign, 6.15 deg with the Zelenin
+# pile over 20 periods (a test's deliberately deep cut lags 19.6 deg and sets its own bound);
+# lab: 51 deg when the simulated lab bucket stalls in the sand (period 8 of scenarios/lab.toml,
+# a run its reproduction test keeps).
 _MAX_TRACKING_ERROR_DEG = {"paper": 15.0, "lab": 90.0}
 
 
