@@ -15,10 +15,12 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import itertools
 import re
 import shutil
 import sys
 import tempfile
+import weakref
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -67,7 +69,14 @@ def _typed_start_values(description, start_values: Mapping[str, float]) -> dict:
     return typed
 
 
-STEP_CODES: set = set()  # code objects of FastSlave's step functions (one per FMI version)
+# The code objects of FastSlave's step functions, one per instance, each named after its
+# instance ("step[boom (HydraulicCylinder)]"): the step watchdog finds a stuck step by its code
+# object, and a native crash's faulthandler dump (orchestrator.campaign.isolation), which
+# shows code names but no variables, names the FMU that crashed. Weak: freed instances leave
+# nothing behind.
+STEP_CODES: weakref.WeakSet = weakref.WeakSet()
+_SERIALS = itertools.count()  # one number per FastSlave construction
+STEP_NAME = re.compile(r"\bstep\[(?P<label>[^\]]*)\]")  # a step's code name in a dump
 
 
 class FastSlave:
@@ -90,6 +99,9 @@ class FastSlave:
         from fmpy.fmi3 import FMU3Slave
 
         self.description = read_model_description(str(fmu))
+        # Read by the step watchdog while the FMU is loaded and initialized
+        # (orchestrator.campaign.watchdog.stuck_call): what is being made, and which making.
+        self.making = f"{instance_name} ({self.description.modelName})", next(_SERIALS)
         self.fmi_version = fmi_major(self.description)
         if self.fmi_version is None or self.description.coSimulation is None:
             raise ValueError(f"{self.description.modelName} is not an FMI 2.0 or 3.0 "
@@ -189,6 +201,8 @@ class FastSlave:
                     raise RuntimeError(f"{label}: {get_name} failed at t = {t}")
                 return out
 
+        name = f"step[{label.replace(']', ')')}]"
+        step.__code__ = step.__code__.replace(co_name=name, co_qualname=name)
         STEP_CODES.add(step.__code__)
         self.step = step
         """step(t, h, values=None): set the inputs to `values` (or use `self.inputs` as it is),

@@ -3,11 +3,13 @@
 An FMU step is native code: Python cannot interrupt it, and one that never returns hangs the run
 with no word. The watchdog is a daemon thread that looks at the main thread's innermost Python
 frame every `poll_s` (sys._current_frames): while an FMU steps, that frame is a FastSlave's step
-function (fmus.runs.STEP_CODES; ctypes releases the GIL during the call, so the thread runs). A step
-is identified by its instance and its start time `t` (each instance's time only grows), so the
-same (instance, t) seen for `timeout_s` is one step that did not return. Nothing is added to the
-step loop itself: no counter, no clock read, no lock; the thread takes the GIL for some
-microseconds per poll.
+function (fmus.runs.STEP_CODES; ctypes releases the GIL during the call, so the thread runs). A
+step is identified by its instance and its start time `t` (each instance's time only grows), so
+the same (instance, t) seen for `timeout_s` is one step that did not return. The loading and
+initialization of an instance (FastSlave's constructor: dlopen, fmi2Instantiate, the
+initialization mode) are watched the same way, identified by a serial number per construction.
+Nothing is added to the step loop itself: no counter, no clock read, no lock; the thread takes
+the GIL for some microseconds per poll.
 
 What then: the stuck call cannot be undone, so the owner decides (`on_hang(message)`, called in
 the watchdog thread): the campaign writes the log's end record (the main thread is inside the
@@ -37,6 +39,31 @@ def stuck_step(frame) -> tuple[int, float, str] | None:
     return id(component), float(t), str(label)
 
 
+def stuck_call(frame) -> tuple[tuple, str, str] | None:
+    """(key, "instance (model)", which call) for the FMU call the main thread's innermost
+    frame `frame` is in: a step ("its step at t = ... s"; key: instance and step time) or the
+    loading and initialization of an instance ("its instantiation and initialization", inside
+    FastSlave.__init__, whichever of fmpy's functions is innermost; key: that construction's
+    serial number); None otherwise. The same key seen twice is the same call."""
+    step = stuck_step(frame)
+    if step is not None:
+        return step[:2], step[2], f"its step at t = {step[1]:.6g} s"
+    from fmus.runs import FastSlave
+
+    constructor = FastSlave.__init__.__code__
+    for _ in range(32):  # fmpy's calls nest a few frames deep
+        if frame is None:
+            return None
+        if frame.f_code is constructor:
+            making = getattr(frame.f_locals.get("self"), "making", None)
+            if making is None:  # still reading the model description (pure Python)
+                return None
+            label, serial = making
+            return ("init", serial), label, "its instantiation and initialization"
+        frame = frame.f_back
+    return None
+
+
 class StepWatchdog:
     """Calls `on_hang(message)` once when one FMU step has not returned for `timeout_s`."""
 
@@ -62,14 +89,13 @@ class StepWatchdog:
     def _watch(self) -> None:
         seen, since = None, 0.0
         while not self._stop.wait(self.poll_s):
-            step = stuck_step(sys._current_frames().get(self._main))
-            key = None if step is None else step[:2]
+            call = stuck_call(sys._current_frames().get(self._main))
+            key = None if call is None else call[0]
             now = time.monotonic()
             if key is None or key != seen:
                 seen, since = key, now
                 continue
             if now - since >= self.timeout_s and not self._stop.is_set():
-                _, t, who = step
-                self._on_hang(f"FMU {who} did not return from its step at t = {t:.6g} s "
-                              f"within {self.timeout_s:g} s")
+                self._on_hang(f"FMU {call[1]} did not return from {call[2]} within "
+                              f"{self.timeout_s:g} s")
                 return

@@ -181,6 +181,11 @@ def run(
         float, typer.Option("--step-timeout", metavar="S", help="End the run when one FMU step "
                             "does not return within S seconds (0: never).")
     ] = 30.0,
+    in_process: Annotated[
+        bool, typer.Option("--in-process", help="Dig in this process, not in a supervised "
+                           "child (for a debugger or a profiler; a crashing FMU then ends the "
+                           "run without an end record in its log).")
+    ] = False,
 ) -> None:
     """Run a digging campaign (or go on with a stopped one: --resume): plan, dig and weigh
     period after period; log it to MCAP."""
@@ -189,10 +194,12 @@ def run(
 
     if as_json and quiet:
         _fail("--json and --quiet exclude each other", 2)
+    isolate = not in_process and run_command.can_isolate()
     if resume is not None or scenario is None:  # the scenario then comes from the log
         failure = run_command.resume(resume, output, (scenario, overrides, periods, plant,
                                      emulate), as_json=as_json, quiet=quiet, force=force,
-                                     trust=trust, step_timeout_s=step_timeout)
+                                     trust=trust, step_timeout_s=step_timeout,
+                                     isolate=isolate)
     else:
         lab_items, problem = run_overrides(plant, emulate)
         if problem is not None:
@@ -200,7 +207,8 @@ def run(
         items = [*lab_items, *(overrides or []),
                  *([f"periods={periods}"] if periods is not None else [])]
         failure = run_command.run(scenario, output, items, as_json=as_json, quiet=quiet,
-                                  force=force, trust=trust, step_timeout_s=step_timeout)
+                                  force=force, trust=trust, step_timeout_s=step_timeout,
+                                  isolate=isolate)
     if failure is not None:
         _fail(*failure)
 

@@ -74,16 +74,21 @@ STEP_TIMEOUT_S = 30.0  # default bound on one FMU step (a 10 ms step takes well 
 
 def run(scenario_path: Path, output: Path | None, overrides: list[str], *, as_json: bool = False,
         quiet: bool = False, force: bool = False, trust: bool = False,
-        step_timeout_s: float = STEP_TIMEOUT_S) -> tuple[str, int] | None:
+        step_timeout_s: float = STEP_TIMEOUT_S, isolate: bool = False
+        ) -> tuple[str, int] | None:
     """Run the campaign; None on success, else (one-line message, exit status). An FMU file
     that is not one of our builds runs only with `trust` (orchestrator.cli.trust); an FMU step
-    that does not return within step_timeout_s (0: no bound) ends the process with status 1."""
+    that does not return within step_timeout_s (0: no bound) ends the process with status 1.
+    isolate: dig in a supervised child process (orchestrator.campaign.isolation; where
+    `can_isolate()`), so that an FMU that crashes or exits ends the run with the reason in its
+    log."""
     if not (math.isfinite(step_timeout_s) and step_timeout_s >= 0.0):
         return f"--step-timeout must be a number of seconds >= 0, got {step_timeout_s!r}", 2
     with terminate_like_ctrl_c():
         try:
             return _run(scenario_path, output, overrides, as_json=as_json, quiet=quiet,
-                        force=force, trust=trust, step_timeout_s=step_timeout_s)
+                        force=force, trust=trust, step_timeout_s=step_timeout_s,
+                        isolate=isolate)
         except Terminated:  # before or after the campaign: no log of ours is open
             return f"terminated (SIGTERM) {_OUTSIDE}", TERMINATED_EXIT
         except KeyboardInterrupt:
@@ -95,12 +100,13 @@ _OUTSIDE = "while loading the scenario or printing the results; no period was cu
 
 def resume(log: Path | None, output: Path | None, given: tuple, *, as_json: bool = False,
            quiet: bool = False, force: bool = False, trust: bool = False,
-           step_timeout_s: float = STEP_TIMEOUT_S) -> tuple[str, int] | None:
+           step_timeout_s: float = STEP_TIMEOUT_S, isolate: bool = False
+           ) -> tuple[str, int] | None:
     """`run --resume LOG`: continue the logged run after its last complete period
     (orchestrator.campaign.resume), in place or into `output`; None on success, else (one
     line, exit status). given: (SCENARIO.toml, --set, --periods, --plant, --emulate) as given,
     none of which may be (the run goes on as it was logged). A run that finished: one line
-    "nothing to resume", exit status 0."""
+    "nothing to resume", exit status 0. isolate: as for run()."""
     names = ("SCENARIO.toml", "--set", "--periods", "--plant", "--emulate")
     extra = [name for name, value in zip(names, given, strict=True)
              if value is not None and value is not False]
@@ -114,7 +120,7 @@ def resume(log: Path | None, output: Path | None, given: tuple, *, as_json: bool
     with terminate_like_ctrl_c():
         try:
             return _resume(log, output, as_json=as_json, quiet=quiet, force=force, trust=trust,
-                           step_timeout_s=step_timeout_s)
+                           step_timeout_s=step_timeout_s, isolate=isolate)
         except Terminated:
             return f"terminated (SIGTERM) {_OUTSIDE}", TERMINATED_EXIT
         except KeyboardInterrupt:
@@ -122,7 +128,7 @@ def resume(log: Path | None, output: Path | None, given: tuple, *, as_json: bool
 
 
 def _resume(log: Path, output: Path | None, *, as_json: bool, quiet: bool, force: bool,
-            trust: bool, step_timeout_s: float) -> tuple[str, int] | None:
+            trust: bool, step_timeout_s: float, isolate: bool) -> tuple[str, int] | None:
     import fmus
     from orchestrator.campaign.resume import NothingToResume, ResumeRefused, prepare_resume
     from orchestrator.cli.trust import trust_problem
@@ -149,11 +155,13 @@ def _resume(log: Path, output: Path | None, *, as_json: bool, quiet: bool, force
         if problem is not None:
             return problem, 2
     return _dig(source.scenario, log if in_place else output, reserved=False, force=force,
-                as_json=as_json, quiet=quiet, step_timeout_s=step_timeout_s, resume=source)
+                as_json=as_json, quiet=quiet, step_timeout_s=step_timeout_s, resume=source,
+                isolate=isolate)
 
 
 def _run(scenario_path: Path, output: Path | None, overrides: list[str], *, as_json: bool,
-         quiet: bool, force: bool, trust: bool, step_timeout_s: float) -> tuple[str, int] | None:
+         quiet: bool, force: bool, trust: bool, step_timeout_s: float, isolate: bool
+         ) -> tuple[str, int] | None:
     import fmus
     from orchestrator.cli.trust import trust_problem
     from orchestrator.scenario import ScenarioError, load_scenario
@@ -178,14 +186,53 @@ def _run(scenario_path: Path, output: Path | None, overrides: list[str], *, as_j
         except OSError as error:
             return f"cannot create a log in {RUNS}/: {error.strerror or error}", 2
     return _dig(scenario, log_path, reserved=output is None, force=force, as_json=as_json,
-                quiet=quiet, step_timeout_s=step_timeout_s)
+                quiet=quiet, step_timeout_s=step_timeout_s, isolate=isolate)
+
+
+def can_isolate() -> bool:
+    """Whether `excosim run` can dig in a supervised child process here: on Linux, with
+    standard output and error that are files (a forked child writes to the same ones; a
+    caller that captures them in memory, such as click's test runner, keeps the run in its
+    own process)."""
+    from orchestrator.campaign.isolation import available
+
+    try:
+        sys.stdout.fileno()
+        sys.stderr.fileno()
+    except (AttributeError, OSError, ValueError):
+        return False
+    return available()
 
 
 def _dig(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_json: bool,
-         quiet: bool, step_timeout_s: float, resume: Any = None) -> tuple[str, int] | None:
+         quiet: bool, step_timeout_s: float, resume: Any = None, isolate: bool = False
+         ) -> tuple[str, int] | None:
     """Run the campaign (or resume the ResumeSource `resume`) with a progress bar, print the
-    results; None on success, else (one line, exit status)."""
+    results; None on success, else (one line, exit status). isolate: in a supervised child
+    process (run())."""
+    settings = {"reserved": reserved, "force": force, "as_json": as_json, "quiet": quiet,
+                "step_timeout_s": step_timeout_s, "resume": resume}
+    if not isolate:
+        return _dig_here(scenario, log_path, **settings)
+    from orchestrator.campaign.isolation import ChildDied, supervised
+
+    before = len(resume.records) if resume is not None else 0
+    outcome = supervised(lambda: _dig_here(scenario, log_path, **settings), log_path, before)
+    if isinstance(outcome, ChildDied):
+        if outcome.periods is not None:
+            where = f"log {log_path} is readable up to period {outcome.periods}"
+        elif _drop_if_empty(log_path, reserved):
+            where = "no log was written"
+        else:
+            where = f"log {log_path}: {outcome.log_note}"
+        return f"run failed: {outcome.message} ({where})", 1
+    return None if outcome is None else (str(outcome[0]), int(outcome[1]))
+
+
+def _dig_here(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_json: bool,
+              quiet: bool, step_timeout_s: float, resume: Any) -> tuple[str, int] | None:
     from orchestrator.campaign import run_campaign
+    from orchestrator.campaign.isolation import end_child
     from orchestrator.campaign.resume import ResumeRefused, resume_campaign
 
     err = Console(stderr=True, highlight=False)
@@ -205,8 +252,10 @@ def _dig(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_json:
 
             def stuck(message: str) -> None:  # the watchdog's thread; the log is closed
                 bar.stop()
-                fail(f"run stopped: {message} (log {log_path} is readable up to period "
-                     f"{len(done)})")
+                line = f"run stopped: {message} (log {log_path} is readable up to period " \
+                    f"{len(done)})"
+                end_child((line, 1))  # a supervised child hands the line to its parent
+                fail(line)
                 sys.stdout.flush()
                 sys.stderr.flush()
                 os._exit(1)  # the main thread is stuck in native code: nothing else ends it

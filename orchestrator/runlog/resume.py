@@ -30,7 +30,8 @@ from pathlib import Path
 import numpy as np
 from mcap.opcode import Opcode
 
-from orchestrator.runlog.reader import _CHUNK_HEAD, _decompress
+from orchestrator.runlog.mcap_records import MAGIC
+from orchestrator.runlog.reader import _CHUNK_HEAD, _decompress, parse_run
 from orchestrator.runlog.writer import RunLog
 from plant_models.geometry import ExcavatorGeometry
 
@@ -52,6 +53,41 @@ def continuation_prefix(data: bytes, chunk: tuple[int, int]) -> bytes:
     if records is None or len(records) != size:
         raise ValueError(f"the chunk at byte {start} is damaged")
     return data[:end] + message_indexes(records)
+
+
+def header_prefix(data: bytes) -> bytes:
+    """The bytes of a run log `data` before its first chunk (magic, header, the run's metadata
+    and attachments): the prefix of a log that holds no period. Whole records only."""
+    pos = len(MAGIC)
+    while pos + _RECORD_PREFIX.size <= len(data):
+        opcode, length = _RECORD_PREFIX.unpack_from(data, pos)
+        end = pos + _RECORD_PREFIX.size + length
+        if opcode in (Opcode.CHUNK, Opcode.DATA_END) or end > len(data):
+            break
+        pos = end
+    return data[:pos]
+
+
+def close_unfinished(path: str | Path, message: str) -> int | None:
+    """Give the log at `path`, which its writer left without an end record (its process died),
+    the end record termination "error" with `message` (one line), in place: its whole periods
+    are kept (the bytes up to the last complete period, as a resume keeps them), the period
+    being dug when the process died is dropped. Returns the periods kept; None when the log
+    has its end record already (it is left as it is). RunLogError for a file that is not a run
+    log, OSError when it cannot be read or replaced."""
+    path = Path(path)
+    if not stat.S_ISREG(path.stat().st_mode):
+        raise OSError(f"{path} is not a regular file")
+    data = path.read_bytes()
+    run = parse_run(path, data)
+    if run.finished:
+        return None
+    kept = len(run.period_chunks)
+    prefix = continuation_prefix(data, run.period_chunks[-1]) if kept else header_prefix(data)
+    log = open_continued(path, None, prefix, periods=kept, note=None, geometry=None,
+                         sample_rate_hz=None)
+    log.close("error", message)
+    return kept
 
 
 def message_indexes(records: bytes) -> bytes:
@@ -77,7 +113,7 @@ def message_indexes(records: bytes) -> bytes:
 
 
 def open_continued(source: Path, output: Path | None, prefix: bytes, *, periods: int,
-                   note: Mapping[str, str], geometry: ExcavatorGeometry | None,
+                   note: Mapping[str, str] | None, geometry: ExcavatorGeometry | None,
                    sample_rate_hz: float | None, overwrite: bool = False) -> RunLog:
     """The RunLog that continues `prefix` (continuation_prefix of `source`) after period
     `periods`: at `output` (a new file; an existing one only with `overwrite`), or, with

@@ -145,15 +145,16 @@ class RunLog:
 
     @classmethod
     def continued(cls, stream: BinaryIO, prefix: bytes, *, path: str | Path, periods: int,
-                  note: Mapping[str, str], geometry: ExcavatorGeometry | None = None,
+                  note: Mapping[str, str] | None, geometry: ExcavatorGeometry | None = None,
                   transform_rate_hz: float = 25.0, sample_rate_hz: float | None = None,
                   fsync: bool = False) -> RunLog:
         """A run log that goes on from `prefix`, the first `periods` periods of a log this class
         wrote (its data section up to the end of period `periods`'s chunk and message indexes:
         orchestrator.runlog.resume), written to `stream` (closed at close()) and flushed with
-        the metadata record `excosim.resumed` (`note`) after it. The next log_period is period
-        periods + 1, on the same channels, as the run that wrote the prefix would have written
-        it. geometry, transform_rate_hz, sample_rate_hz, fsync: as the run's own (__init__).
+        the metadata record `excosim.resumed` (`note`; None: none) after it. The next
+        log_period is period periods + 1, on the same channels, as the run that wrote the
+        prefix would have written it. geometry, transform_rate_hz, sample_rate_hz, fsync: as
+        the run's own (__init__).
         ValueError when the prefix is not such a data section."""
         self = cls.__new__(cls)
         self._setup(path, geometry, transform_rate_hz, sample_rate_hz, fsync)
@@ -163,7 +164,8 @@ class RunLog:
         for channel in self._writer.channels:
             self._channels[(channel.topic, tuple(sorted(channel.metadata.items())))] = channel.id
         self._periods = periods
-        self._writer.add_metadata("excosim.resumed", dict(note))
+        if note is not None:
+            self._writer.add_metadata("excosim.resumed", dict(note))
         self._writer.flush(True)  # the copy is on the disk before it may replace the original
         return self
 
