@@ -15,6 +15,7 @@ from fmus.builder import (
     build,
     build_all,
     build_model,
+    cached_content_hashes,
     fmu_dir,
     local_content_hashes,
     model_names,
@@ -26,5 +27,5 @@ MODELS: tuple[str, ...] = tuple(model_names())
 
 __all__ = [
     "MODELS", "BuildError", "UnsafeArchive", "build", "build_all", "build_model", "check_archive",
-    "content_hash", "demo", "fmu_dir", "local_content_hashes", "model_names",
+    "cached_content_hashes", "content_hash", "demo", "fmu_dir", "local_content_hashes", "model_names",
 ]

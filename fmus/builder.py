@@ -39,7 +39,7 @@ from fmus.table import TableError, read_table
 
 __all__ = [
     "BuildError", "MODELS_DIR", "FMI_VERSIONS", "model_names", "fmu_dir", "build", "build_model",
-    "build_all", "local_content_hashes",
+    "build_all", "cached_content_hashes", "local_content_hashes",
 ]
 
 MODELS_DIR = Path(__file__).resolve().parent
@@ -314,6 +314,23 @@ def local_content_hashes(fmi_version: int = 2) -> dict[str, str]:
     needed; BuildError if one cannot be): what `fmus.identity.content_hash` of an FMU that came
     from elsewhere is compared with to tell our build from native code of unknown origin."""
     return {content_hash(build(name, fmi_version)): name for name in model_names()}
+
+
+def cached_content_hashes() -> dict[str, str]:
+    """content hash -> model name of every FMU the build cache records (content.sha256 next
+    to each FMU, FMI 2.0 and 3.0), whatever version of the sources it was built from: the FMUs
+    this machine built. A log of an earlier version's run names such FMUs; they are ours, not
+    native code of unknown origin, for as long as the cache keeps them."""
+    found: dict[str, str] = {}
+    for root in (fmu_dir(), fmu_dir() / "fmi3"):
+        for record in sorted(root.glob(f"*/{CONTENT_RECORD}")):
+            try:
+                digest = record.read_text(encoding="ascii").strip()
+            except (OSError, UnicodeDecodeError):
+                continue
+            if len(digest) == 64 and all(c in "0123456789abcdef" for c in digest):
+                found[digest] = record.parent.name.rpartition("-")[0]
+    return found
 
 
 def build_all(fmi_version: int = 2) -> dict[str, Path]:

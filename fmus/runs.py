@@ -173,11 +173,11 @@ class FastSlave:
                 if values is not None:
                     inputs[:] = values
                 if set_inputs() > 1:
-                    raise RuntimeError(f"{label}: {set_name} failed at t = {t}")
+                    raise RuntimeError(f"{label}: {set_name} failed at t = {t}{said()}")
                 if do_step(component, t, h, 1) > 1:
                     raise RuntimeError(f"{label}: {step_name} failed at t = {t}{said()}")
                 if get_outputs() > 1:
-                    raise RuntimeError(f"{label}: {get_name} failed at t = {t}")
+                    raise RuntimeError(f"{label}: {get_name} failed at t = {t}{said()}")
                 return out
         else:
             # No argtypes: ctypes then passes the pre-built objects as they are (the doubles
@@ -191,14 +191,14 @@ class FastSlave:
                 if values is not None:
                     inputs[:] = values
                 if set_inputs() > 1:
-                    raise RuntimeError(f"{label}: {set_name} failed at t = {t}")
+                    raise RuntimeError(f"{label}: {set_name} failed at t = {t}{said()}")
                 if do_step(component, double(t), double(h), no_set_prior, event, stop, early,
                            last) > 1:
                     raise RuntimeError(f"{label}: {step_name} failed at t = {t}{said()}")
                 if terminate.value:
                     raise RuntimeError(f"{label} asked to terminate the simulation at t = {t}")
                 if get_outputs() > 1:
-                    raise RuntimeError(f"{label}: {get_name} failed at t = {t}")
+                    raise RuntimeError(f"{label}: {get_name} failed at t = {t}{said()}")
                 return out
 
         name = f"step[{label.replace(']', ')')}]"

@@ -189,6 +189,25 @@ def test_a_run_killed_with_sigkill_resumes_on_the_command_line(full, folder):
     assert text.exit_code == 0 and f"(resumed after period {len(killed.periods)})" in text.stdout
 
 
+def test_a_run_that_is_still_writing_its_log_is_not_resumed(folder):
+    """The writer holds its log's lock while the run goes (orchestrator.runlog.lock): a resume
+    meanwhile is refused, before anything is written; once the run has ended, it is not."""
+    path = folder / "going.mcap"
+    seen: list[str] = []
+
+    def meanwhile(record):  # period 1 is logged, the run goes on
+        with pytest.raises(ResumeRefused, match="is being written by a run that is still "
+                           "going") as refused:
+            prepare_resume(path)
+        seen.append(str(refused.value))
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_campaign(scenario(), log_path=path, progress=meanwhile)
+    assert len(seen) == 1 and len(read_run(path).periods) == 1
+    assert prepare_resume(path).k == 1  # the run has ended: its lock is gone
+
+
 def test_an_interrupted_resume_resumes_again_and_output_leaves_the_original(full, folder):
     at, _ = cut_points(full)["inside period 3's chunk"]
     original = cut(full, folder / "twice.mcap", at)

@@ -7,8 +7,8 @@ valve a thousand times too small, dig a period whose tracking error goes beyond 
 plant.max_tracking_error_deg: the run ends naming the joint instead of reporting the period).
 
 Hypothesis draws 1-3 mutations per case: a field of any table set to a scaled, shifted, extreme,
-wrong-typed or plant-set value, or removed. The cases are derandomized (the same set every run);
-the counts are printed with -s.
+wrong-typed or plant-set value, or removed. The cases come from a fixed seed (the same set every
+run, whatever the test's body); the counts are printed with -s.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, given, seed, settings
 from hypothesis import strategies as st
 
 from orchestrator.campaign import run_campaign
@@ -106,7 +106,8 @@ def report():
           f"{time.perf_counter() - start:.1f} s")
 
 
-@settings(max_examples=CASES, deadline=None, derandomize=True, database=None,
+@seed(20_240_301)  # the same cases whatever the test's body (derandomize hashes the source)
+@settings(max_examples=CASES, deadline=None, database=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(st.lists(mutation, min_size=1, max_size=3))
 def test_a_mutated_scenario_loads_and_digs_or_is_refused_naming_a_field(tmp_path, mutations):

@@ -59,6 +59,8 @@ PAPER = ROOT / "scenarios" / "paper-2020.toml"
      "HydraulicCylinder does not initialise with these parameters: rod must be > 0 and < bore"),
     (["plant.pile.parameters.z_floor=0.5"], "plant.pile.parameters.z_floor",
      "Pile does not initialise with these parameters: z_floor must lie below z_surface0"),
+    (["plant.pile.parameters.density=1.6e12"], "plant.pile.parameters.density",
+     "density must lie in [100, 10000] kg/m3"),  # the bucket would weigh 9e10 kg
     (["plant.communication_step_s=0.05"], "plant.stick",
      "cannot damp the hydraulic mode"),
 ])

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import ctypes
 import faulthandler
+import gc
 import json
 import os
 import shutil
@@ -78,9 +79,11 @@ def supervised(body: Callable[[], Any], log_path: Path, period_offset: int = 0
         child = [0]
         previous = {signum: signal.signal(signum, _forward_to(child)) for signum in _FORWARDED}
         try:
+            gc.freeze()  # the child's collector then leaves the parent's objects (and pages) be
             pid = os.fork()
             if pid == 0:
                 _child(body, folder, previous)  # never returns
+            gc.unfreeze()
             child[0] = pid
             try:
                 os.setpgid(pid, pid)  # also done by the child: whichever comes first

@@ -73,12 +73,9 @@ def prepare_resume(path: str | Path) -> ResumeSource:
 
     path = Path(path)
     run, data = _read(path)
-    kind = run.metadata["excosim.run"].get("plant_kind")
-    if kind == "lab":
-        raise ResumeRefused(f"{path} is a lab run: the real excavator's state cannot be "
-                            "restored, so it cannot be resumed")
-    if kind != "sim":
-        raise ResumeRefused(f"{path}: plant kind {kind!r} cannot be resumed (only 'sim')")
+    problem = run.not_simulated("be resumed")
+    if problem is not None:
+        raise ResumeRefused(problem)
     if run.finished and run.termination in FINISHED:
         n = len(run.periods)
         how = f"dug all {n} planned periods" if run.termination == "periods" else \
@@ -116,9 +113,14 @@ def prepare_resume(path: str | Path) -> ResumeSource:
 def _read(path: Path) -> tuple[RunFile, bytes]:
     import stat
 
+    from orchestrator.runlog.lock import being_written
+
     try:
         if not stat.S_ISREG(path.stat().st_mode):
             raise ResumeRefused(f"{path} is not a regular file (a folder, FIFO or device)")
+        if being_written(path):
+            raise ResumeRefused(f"{path} is being written by a run that is still going "
+                                "(its writer holds the file's lock): stop it first")
         data = path.read_bytes()
     except OSError as error:
         raise ResumeRefused(f"cannot read {path}: {error.strerror or error}") from None

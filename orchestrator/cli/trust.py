@@ -4,7 +4,8 @@
 An FMU is native code that runs inside this process. Our models, named by name, are built here
 from this tree's sources and always run. An FMU file a scenario names runs without --trust only
 when its content (fmus.identity.content_hash) is that of one of our builds, FMI 2.0 or 3.0 (a
-copy of our FMU, say); any other file is refused with its sha256, and with --trust it runs
+copy of our FMU, say), or of an FMU this machine built from earlier sources and its build cache
+still holds (fmus.cached_content_hashes); any other file is refused with its sha256, and with --trust it runs
 and the command says so on stderr, with the file's full sha256 (which the run log records too).
 """
 
@@ -46,9 +47,9 @@ def foreign_fmus(scenario: Any) -> list[ForeignFmu]:
         path = Path(name)
         data = path.read_bytes()
         digest = content_hash(data, f"plant.{role}.fmu: {path}")
-        if digest not in ours and not fmi3_checked:  # our FMI 3.0 builds are ours too
-            ours = {**ours, **fmus.local_content_hashes(3)}
-            fmi3_checked = True
+        if digest not in ours and not fmi3_checked:  # our FMI 3.0 builds are ours too,
+            ours = {**fmus.cached_content_hashes(), **ours, **fmus.local_content_hashes(3)}
+            fmi3_checked = True  # and what this machine built from earlier sources
         if digest not in ours:
             out.append(ForeignFmu(role, path, hashlib.sha256(data).hexdigest()))
     return out

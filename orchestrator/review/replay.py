@@ -8,8 +8,9 @@ repeats every period's weighed mass, deepest point D and trajectory duration exa
 
 An FMU is native code that runs inside this process. A replay therefore runs only FMUs whose
 content (fmus.identity.content_hash: model description, binaries, sources; not the zip's bytes)
-equals that of an FMU built from this version's sources (`fmus.build`), unless the caller
-trusts the file. Refused even then: an attachment whose bytes do not hash to the file's own
+equals that of an FMU built from this version's sources (`fmus.build`) or one this machine
+built from earlier sources and its build cache still holds (`fmus.cached_content_hashes`: the
+logs of earlier versions' runs made here), unless the caller trusts the file. Refused even then: an attachment whose bytes do not hash to the file's own
 metadata (it was altered after it was written), and one that is not a safe archive (too many or
 too large entries, links, absolute or escaping names, NUL bytes: fmus.identity.check_archive).
 
@@ -38,6 +39,7 @@ __all__ = ["TOLERANCE", "FmuCheck", "PeriodComparison", "ReplayRefused", "Replay
 
 SHORT_HASH = 12  # hex digits of a sha256 shown to a person
 LOCAL_BUILD, TRUSTED = "local build", "--trust"
+EARLIER_BUILD = "earlier local build"  # built here from earlier sources (the build cache)
 
 
 class ReplayRefused(ValueError):
@@ -47,8 +49,8 @@ class ReplayRefused(ValueError):
 @dataclass(frozen=True)
 class FmuCheck:
     """The FMU a component ran: its attachment, the attachment's sha256, its content hash and
-    why the replay runs it (trusted_by: "local build", the same content as our build, or
-    "--trust")."""
+    why the replay runs it (trusted_by: "local build", the same content as our build;
+    "earlier local build", built here from earlier sources; or "--trust")."""
 
     attachment: str
     sha256: str
@@ -155,12 +157,9 @@ def replay_run(path: str | Path, *, trust: bool = False,
 
     path = Path(path)
     run = read_run(path, tolerant=True)
-    kind = run.metadata["excosim.run"].get("plant_kind")
-    if kind == "lab":
-        raise ReplayRefused(f"{path} is a lab run: it was measured on the real machine and "
-                            "cannot be re-simulated")
-    if kind != "sim":
-        raise ReplayRefused(f"{path}: plant kind {kind!r} cannot be re-simulated (only 'sim')")
+    problem = run.not_simulated("be re-simulated")
+    if problem is not None:
+        raise ReplayRefused(problem)
     data = _scenario_data(run)
     try:  # the logged records are checked before the replay spends its time
         compare_periods(run.periods, [])
@@ -256,7 +255,10 @@ def check_fmus(run: RunFile, *, trust: bool = False) -> dict[str, FmuCheck]:
         if not trust:
             raise
         local = {}
-    untrusted = [c for c, (_, _, content) in recorded.items() if content not in local]
+    earlier = {} if all(content in local for _, _, content in recorded.values()) else \
+        fmu_builder.cached_content_hashes()  # a log of an earlier version's run, made here
+    untrusted = [c for c, (_, _, content) in recorded.items()
+                 if content not in local and content not in earlier]
     if untrusted and not trust:
         which = ", ".join(f"{c} ({recorded[c][0]}, sha256 {recorded[c][1][:SHORT_HASH]})"
                           for c in untrusted)
@@ -264,7 +266,8 @@ def check_fmus(run: RunFile, *, trust: bool = False) -> dict[str, FmuCheck]:
         raise ReplayRefused(
             f"{run.path}: {noun} {which}: not an FMU built from this version's sources; an "
             "FMU is native code: check where the file comes from, then --trust runs it anyway")
-    return {c: FmuCheck(name, digest, LOCAL_BUILD if content in local else TRUSTED, content)
+    return {c: FmuCheck(name, digest, LOCAL_BUILD if content in local else
+                        EARLIER_BUILD if content in earlier else TRUSTED, content)
             for c, (name, digest, content) in recorded.items()}
 
 

@@ -107,6 +107,17 @@ class RunFile:
         """The text of the scenario file the run was started with."""
         return self.attachments[self.metadata["excosim.run"]["scenario_attachment"]].decode()
 
+    def not_simulated(self, cannot: str) -> str | None:
+        """Why a run that must be simulated again ("be re-simulated", "be resumed": `cannot`)
+        cannot be (one line: a lab run, another plant kind); None for a simulated run."""
+        kind = self.metadata.get("excosim.run", {}).get("plant_kind")
+        if kind == "lab":
+            return (f"{self.path} is a lab run: it was measured on the real machine, so it "
+                    f"cannot {cannot}")
+        if kind != "sim":
+            return f"{self.path}: plant kind {kind!r} cannot {cannot} (only 'sim')"
+        return None
+
 
 # A chunk may declare at most this many uncompressed bytes: a paper period is about 1 MB, a
 # 1 kHz lab period about 8 MB; a crafted chunk declaring 2^40 bytes (or a bomb that inflates a

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 from mcap.opcode import Opcode
 
+from orchestrator.runlog.lock import being_written
 from orchestrator.runlog.mcap_records import MAGIC
 from orchestrator.runlog.reader import _CHUNK_HEAD, _decompress, parse_run
 from orchestrator.runlog.writer import RunLog
@@ -78,6 +79,8 @@ def close_unfinished(path: str | Path, message: str) -> int | None:
     path = Path(path)
     if not stat.S_ISREG(path.stat().st_mode):
         raise OSError(f"{path} is not a regular file")
+    if being_written(path):
+        raise OSError(f"{path} is still being written by a live process")
     data = path.read_bytes()
     run = parse_run(path, data)
     if run.finished:

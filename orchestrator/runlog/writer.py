@@ -52,6 +52,7 @@ from foxglove.messages import FrameTransforms, SceneUpdate
 
 from orchestrator.runlog import scene
 from orchestrator.runlog.chunk import ChunkBuilder, DoubleBatch
+from orchestrator.runlog.lock import lock_for_writing
 from orchestrator.runlog.mcap_records import McapChunkWriter
 from orchestrator.runlog.metadata import (
     FORMAT,
@@ -122,6 +123,7 @@ class RunLog:
             raise FileExistsError(f"run log {path} already exists") from None
         self._setup(path, geometry, transform_rate_hz, sample_rate_hz, fsync)
         library = f"excosim {package_versions()['excosim']}"
+        lock_for_writing(stream)
         self._writer = McapChunkWriter(stream, library=library)
         write_run_description(
             self._writer, scenario_json=scenario_json, scenario_text=scenario_text,
@@ -158,6 +160,7 @@ class RunLog:
         ValueError when the prefix is not such a data section."""
         self = cls.__new__(cls)
         self._setup(path, geometry, transform_rate_hz, sample_rate_hz, fsync)
+        lock_for_writing(stream)
         self._writer = McapChunkWriter.continued(stream, prefix)
         for schema in self._writer.schemas:
             self._schemas[schema.name] = schema.id

@@ -75,7 +75,10 @@ static double lowest_ground(const double *v)
 static const char *check_parameters(const double *v)
 {
     if (!(v[VR_n_cells] == N_h)) return "n_cells must equal the number of profile cells h[]";
-    if (!(v[VR_density] > 0.0 && isfinite(v[VR_density]))) return "density must be > 0 kg/m3";
+    /* Bulk densities of what an excavator digs run from about 300 kg/m3 (peat) to 5000 kg/m3
+     * (iron ore); beyond the bound a bucket load outweighs the arm it hangs from. */
+    if (!(v[VR_density] >= 100.0 && v[VR_density] <= 10000.0))
+        return "density must lie in [100, 10000] kg/m3 (a bulk density of soil or rock)";
     if (!(v[VR_slice_width] > 0.0 && isfinite(v[VR_slice_width])))
         return "slice_width must be > 0 m";
     if (!(v[VR_bucket_width] > 0.0 && isfinite(v[VR_bucket_width])))

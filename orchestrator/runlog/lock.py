@@ -1,0 +1,44 @@
+"""A run log that is being written is locked: its writer holds an exclusive advisory lock
+(flock) on the open file until it closes it or its process ends, however it ends (the system
+drops the lock with the process). `excosim run --resume` and the closing of a dead run's log
+check it, so a run that is still digging is never continued or closed by another process.
+POSIX only; elsewhere nothing is locked and nothing is found locked.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import BinaryIO
+
+try:
+    import fcntl
+except ImportError:  # Windows
+    fcntl = None
+
+
+def lock_for_writing(stream: BinaryIO) -> None:
+    """Take the writer's lock on the open log file `stream` (a file of ours, just made, that
+    nobody else holds)."""
+    if fcntl is not None:
+        try:
+            fcntl.flock(stream.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:  # a file system without locks: the log is written all the same
+            pass
+
+
+def being_written(path: str | Path) -> bool:
+    """Whether a live process holds the writer's lock on the run log at `path`."""
+    if fcntl is None:
+        return False
+    try:
+        with open(path, "rb") as stream:
+            try:
+                fcntl.flock(stream.fileno(), fcntl.LOCK_SH | fcntl.LOCK_NB)
+            except BlockingIOError:
+                return True
+            except OSError:
+                return False
+            fcntl.flock(stream.fileno(), fcntl.LOCK_UN)
+    except OSError:
+        return False
+    return False
