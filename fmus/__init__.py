@@ -27,5 +27,6 @@ MODELS: tuple[str, ...] = tuple(model_names())
 
 __all__ = [
     "MODELS", "BuildError", "UnsafeArchive", "build", "build_all", "build_model", "check_archive",
-    "cached_content_hashes", "content_hash", "demo", "fmu_dir", "local_content_hashes", "model_names",
+    "cached_content_hashes", "content_hash", "demo", "fmu_dir", "local_content_hashes",
+    "model_names",
 ]

@@ -1,11 +1,11 @@
 """The --trust rule of the commands that run a scenario's FMUs (`run`, `scenario show`,
 `emulate`), the same as `replay`'s (docs/reliability.md).
 
-An FMU is native code that runs inside this process. Our models, named by name, are built here
-from this tree's sources and always run. An FMU file a scenario names runs without --trust only
-when its content (fmus.identity.content_hash) is that of one of our builds, FMI 2.0 or 3.0 (a
-copy of our FMU, say), or of an FMU this machine built from earlier sources and its build cache
-still holds (fmus.cached_content_hashes); any other file is refused with its sha256, and with --trust it runs
+An FMU is native code that runs inside this process. Our models, named by name, are built here from
+this tree's sources and always run. An FMU file a scenario names runs without --trust only when its
+content (fmus.identity.content_hash) is that of one of our builds, FMI 2.0 or 3.0 (a copy of our
+FMU, say), or of an FMU this machine built from earlier sources and its build cache still holds
+(fmus.cached_content_hashes); any other file is refused with its sha256, and with --trust it runs
 and the command says so on stderr, with the file's full sha256 (which the run log records too).
 """
 

@@ -6,13 +6,14 @@ seed included) and the same FMU bytes give the same numbers, so a replay of a fa
 repeats every period's weighed mass, deepest point D and trajectory duration exactly
 (compared within TOLERANCE, 1e-9 in kg, m and s).
 
-An FMU is native code that runs inside this process. A replay therefore runs only FMUs whose
-content (fmus.identity.content_hash: model description, binaries, sources; not the zip's bytes)
-equals that of an FMU built from this version's sources (`fmus.build`) or one this machine
-built from earlier sources and its build cache still holds (`fmus.cached_content_hashes`: the
-logs of earlier versions' runs made here), unless the caller trusts the file. Refused even then: an attachment whose bytes do not hash to the file's own
-metadata (it was altered after it was written), and one that is not a safe archive (too many or
-too large entries, links, absolute or escaping names, NUL bytes: fmus.identity.check_archive).
+An FMU is native code that runs inside this process. A replay therefore runs only FMUs whose content
+(fmus.identity.content_hash: model description, binaries, sources; not the zip's bytes) equals that
+of an FMU built from this version's sources (`fmus.build`) or one this machine built from earlier
+sources and its build cache still holds (`fmus.cached_content_hashes`: the logs of earlier versions'
+runs made here), unless the caller trusts the file. Refused even then: an attachment whose bytes do
+not hash to the file's own metadata (it was altered after it was written), and one that is not a
+safe archive (too many or too large entries, links, absolute or escaping names, NUL bytes:
+fmus.identity.check_archive).
 
     report = replay_run("runs/paper.mcap")
     report.matches, report.first_difference(), report.as_dict()

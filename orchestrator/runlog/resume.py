@@ -16,6 +16,9 @@ to the disk and renamed over the old file before the first new period is dug: at
 the file at the log's path is a readable run log with at least the periods it had, so a
 resumed run that is killed again can be resumed again. With another output path the old file
 is left as it is.
+
+The same cut closes the log of a run whose process died (`close_unfinished`, for the supervisor
+of orchestrator.campaign.isolation): its whole periods, then the end record with the reason.
 """
 
 from __future__ import annotations
