@@ -16,7 +16,10 @@ One communication step h from t_k (the reference is interpolated onto the grid t
 At the end of a period the load cell reads the Pile's bucket mass (plus Gaussian noise from one
 generator seeded per plant), then the Pile steps once more with `dump` high and the bucket
 empties; the profile h[1..n] and the cell centres go into the measurement. The next period
-continues from there: its reference must start within `start_tolerance_rad` of the arm.
+continues from there: its reference must start within `start_tolerance_rad` of the arm. So
+before the weighing, an arm that ends further than half that from its reference's last pose (a
+joint lagging, e.g. a bucket slowed in the soil) is held on that pose until it is within it, at
+most SETTLE_MAX_S; the held samples are part of the period (its reference held).
 
 Measurement rows are samples at t_k (period time from 0): joints and cylinder outputs at t_k,
 the Pile's outputs after its step to the tip at t_k, and the inputs (u, F_ext) held from t_k.
@@ -34,20 +37,25 @@ from functools import lru_cache
 
 import numpy as np
 
-from fmus.runs import value_kind
 from orchestrator.plants.arm_coupling import ArmCoupling
 from orchestrator.plants.arm_dynamics import ArmInertia
-from orchestrator.plants.identify import CylinderIdentification, identify_cylinder
-from orchestrator.plants.master import Master, check_component, fmu_path, port_conversions
+from orchestrator.plants.identify import CylinderIdentification
+from orchestrator.plants.master import Master, check_component, port_conversions
 from orchestrator.plants.plant_state import ResumableState
-from plant_models.cylinder_model import CylinderModel
+from orchestrator.plants.servo_setup import (
+    design_servo_cached,
+    fmu_description,
+    linear_servo,
+    model_from_fmu,
+    start_values,
+)
 from plant_models.hydraulics import reflected_mass_kg
 from plant_models.linear_cylinder import LinearCylinderModel
-from plant_models.linear_servo import LinearJointServo, LinearServoDesign, design_linear_servo
+from plant_models.linear_servo import LinearJointServo, LinearServoDesign
 from plant_models.linkage import JOINT_NAMES
 from plant_models.model_spec import CYLINDER_OUTPUTS, PILE_OUTPUTS
 from plant_models.plant import JointReference, PeriodMeasurement
-from plant_models.servo import JointServo, ServoDesign, design_servo
+from plant_models.servo import JointServo, ServoDesign
 from plant_models.sim_config import SimulatedExcavatorConfig
 
 _COLUMNS = (
@@ -56,14 +64,8 @@ _COLUMNS = (
     "tip.y", "tip.z", "tip.bucket_angle",
 )
 _PROFILE = re.compile(r"^h\[(\d+)\]$")
-
-
-def _start_values(description) -> dict[str, float]:
-    values = {}
-    for variable in description.modelVariables:
-        if variable.start is not None and value_kind(variable.type) in ("Real", "Integer"):
-            values[variable.name] = float(variable.start)
-    return values
+SETTLE_MAX_S = 5.0  # s: the longest an arm is held on a period's last pose (run_period)
+SETTLE_CHUNK = 10  # communication steps held between looks at the pose
 
 
 class SimulatedExcavator(ResumableState):
@@ -85,7 +87,7 @@ class SimulatedExcavator(ResumableState):
         self._initial_surface: tuple[np.ndarray, np.ndarray] | None = None
         designs, linear_models, identifications = [], [], []
         for index, (joint, spec) in enumerate(zip(JOINT_NAMES, config.cylinders, strict=True)):
-            description = _description(joint, spec)
+            description = fmu_description(joint, spec)
             ports = check_component(joint, "cylinder", spec, description)
             conversions = port_conversions(joint, spec, description, ports)
             stroke = self.coupling.tables[index].stroke_m
@@ -93,13 +95,13 @@ class SimulatedExcavator(ResumableState):
             # An explicit model wins; then our HydraulicCylinder's parameters (the paper
             # scenario: unchanged); only an FMU with other parameter names is identified.
             model = given if given is not None or spec.linear_model is not None \
-                else _model_from_fmu(description, spec.parameters)
+                else model_from_fmu(description, spec.parameters)
             if given is None and model is not None and "mass_load" in ports:
                 # The FMU's mass is the piston's; the arm's inertia comes through mass_load.
                 model = replace(model, mass_kg=model.mass_kg + reflected[index])
             if model is None:
                 load_mass = {ports["mass_load"]: reflected[index]} if "mass_load" in ports else None
-                design, linear, identified = _linear_servo(joint, spec, stroke, config,
+                design, linear, identified = linear_servo(joint, spec, stroke, config,
                                                            conversions, load_mass)
                 designs.append(design)
                 linear_models.append(linear)
@@ -111,7 +113,7 @@ class SimulatedExcavator(ResumableState):
             design_stroke = None if config.design_strokes_m is None \
                 else config.design_strokes_m[index]
             try:
-                designs.append(_design_servo(
+                designs.append(design_servo_cached(
                     model, config.communication_step_s, design_stroke, config.servo_damping,
                     config.servo_gain_margin_db, config.servo_phase_margin_deg))
             except ValueError as error:  # the design's own message does not name the joint
@@ -125,12 +127,12 @@ class SimulatedExcavator(ResumableState):
         self.linear_models: tuple[LinearCylinderModel | None, ...] = tuple(linear_models)
         self.identifications: tuple[CylinderIdentification | None, ...] = \
             tuple(identifications)
-        pile_description = _description("pile", config.pile)
+        pile_description = fmu_description("pile", config.pile)
         check_component("pile", "pile", config.pile, pile_description)
         self._profile_names = sorted(
             (v.name for v in pile_description.modelVariables if _PROFILE.match(v.name)),
             key=lambda name: int(_PROFILE.match(name).group(1)))
-        pile_values = {**_start_values(pile_description), **config.pile.parameters}
+        pile_values = {**start_values(pile_description), **config.pile.parameters}
         self._grid_limits = (pile_values.get("y_min"), pile_values.get("y_max"))
         if config.start_pose_rad is not None:
             self._start(np.asarray(config.start_pose_rad, dtype=float))
@@ -219,6 +221,10 @@ class SimulatedExcavator(ResumableState):
                 f"{math.degrees(self.config.start_tolerance_rad):.2f} deg")
         stroke_ref = self.coupling.stroke_reference(position, velocity, acceleration)
         rows, joints = self._track(*stroke_ref)
+        held = self._settle(position[-1], stroke_ref[0][-1], rows, joints)
+        if held:
+            position = np.vstack([position, np.repeat(position[-1:], held, axis=0)])
+            t = np.arange(len(position)) * self.config.communication_step_s
         table = np.array(rows)
         signals = {name: table[:, i].copy() for i, name in enumerate(_COLUMNS)}
         for joint in JOINT_NAMES:  # an FMU without e.g. chamber pressures measured none
@@ -315,6 +321,24 @@ class SimulatedExcavator(ResumableState):
             self._steps, self._pile_time = steps, pile_time
         return rows, joints
 
+    def _settle(self, pose_rad: np.ndarray, stroke_m: np.ndarray, rows: list,
+                joints: list) -> int:
+        """Hold the strokes `stroke_m` (3,) of the reference's last pose `pose_rad` (3,) while
+        the arm is further than half the start tolerance from it, at most SETTLE_MAX_S, in
+        steps of SETTLE_CHUNK; the samples go on `rows` and `joints`. Returns the steps held."""
+        h = self.config.communication_step_s
+        limit, tolerance = round(SETTLE_MAX_S / h), 0.5 * self.config.start_tolerance_rad
+        still = np.zeros((SETTLE_CHUNK, 3))
+        held = 0
+        while held < limit and np.max(np.abs(self.joints_rad() - pose_rad)) > tolerance:
+            n = min(SETTLE_CHUNK, limit - held)
+            more_rows, more_joints = self._track(np.repeat(stroke_m[None, :], n, axis=0),
+                                                 still[:n], still[:n])
+            rows += more_rows
+            joints += more_joints
+            held += n
+        return held
+
     def _dump(self) -> None:
         """One Pile step with `dump` high (tip where it is): the bucket empties."""
         pile, h = self._master["pile"], self.config.communication_step_s
@@ -339,58 +363,3 @@ class SimulatedExcavator(ResumableState):
 def _coupling(geometry) -> ArmCoupling:
     """One ArmCoupling per geometry: its tables take a fifth of a second and never change."""
     return ArmCoupling(geometry)
-
-
-@lru_cache(maxsize=64)
-def _design_servo(model: CylinderModel, *settings) -> ServoDesign:
-    """plant_models.servo.design_servo, remembered: a pure function of frozen values, and the
-    scenario loader designs every servo once before the run designs it again."""
-    return design_servo(model, *settings)
-
-
-def _description(component: str, spec):
-    path = fmu_path(spec, component)
-    try:
-        stat = path.stat()
-        return _read_description(str(path), stat.st_mtime_ns, stat.st_ctime_ns, stat.st_size)
-    except Exception as error:
-        raise ValueError(f"{component}: cannot read {path.name}: {error}") from None
-
-
-@lru_cache(maxsize=64)
-def _read_description(path: str, *stat):
-    """The model description of the FMU file at `path` as it is (`stat`: its identity now)."""
-    from fmpy import read_model_description
-
-    return read_model_description(path)
-
-
-def _model_from_fmu(description, parameters) -> CylinderModel | None:
-    """Our HydraulicCylinder's model from the FMU's parameters; None for an FMU with other
-    parameter names (its servo then works on a linear model)."""
-    try:
-        return CylinderModel.from_fmu_parameters({**_start_values(description), **parameters})
-    except ValueError:
-        return None
-
-
-def _linear_servo(joint: str, spec, stroke_m: float, config: SimulatedExcavatorConfig,
-                  conversions=None, load_mass: dict[str, float] | None = None):
-    """(design, linear model, identification or None) of `joint`'s linear servo: on the
-    FmuSpec's linear_model, else on the model identified from the FMU (with `load_mass`, the
-    FMU variable taking the arm's reflected inertia -> kg, set during the test)."""
-    identified = None
-    model = spec.linear_model
-    if model is None:
-        parameters = {**spec.parameters, **(load_mass or {})}
-        identified = identify_cylinder(fmu_path(spec, joint), spec.ports, parameters,
-                                       stroke_m, config.communication_step_s,
-                                       conversions=conversions)
-        model = identified.model
-    elif not math.isclose(model.stroke_m, stroke_m, rel_tol=0.01):
-        raise ValueError(f"{joint}: linear_model.stroke_m {model.stroke_m} m differs from the "
-                         f"linkage's stroke {stroke_m:.4g} m by more than 1 %")
-    points = tuple(f.model for f in identified.fits) if identified is not None else ()
-    design = design_linear_servo(model, config.communication_step_s, joint, points,
-                                 config.servo_gain_margin_db, config.servo_phase_margin_deg)
-    return design, model, identified
