@@ -1,9 +1,9 @@
-"""An arm that ends a period off its path's last pose (a bucket slowed in a heap) is held on that pose
-before the weighing (orchestrator.plants.simulated_excavator, SETTLE_MAX_S), so that the next
-period, which starts there, can start. The case is one of the robustness sweep's random piles
-(sweeps/robustness.toml, fuzzy rule, seed 16), whose run ended in period 6 with "reference starts
-3.46 deg from the arm's bucket angle" before the hold; the same campaign without the hold must
-still end so, or the test would not show the hold at work."""
+"""An arm that ends a period off its path's last pose (a bucket slowed in a heap) is held on that
+pose before the weighing (orchestrator.plants.simulated_excavator, SETTLE_MAX_S), so that the
+next period, which starts there, can start. The case is one of the robustness sweep's random
+piles (sweeps/robustness.toml, fuzzy rule, seed 16), whose run ended in period 6 with "reference
+starts 3.46 deg from the arm's bucket angle" before the hold; the same campaign without the hold
+must still end so, or the test would not show the hold at work."""
 
 from __future__ import annotations
 
