@@ -317,20 +317,37 @@ def local_content_hashes(fmi_version: int = 2) -> dict[str, str]:
 
 
 def cached_content_hashes() -> dict[str, str]:
-    """content hash -> model name of every FMU the build cache records (content.sha256 next
-    to each FMU, FMI 2.0 and 3.0), whatever version of the sources it was built from: the FMUs
-    this machine built. A log of an earlier version's run names such FMUs; they are ours, not
-    native code of unknown origin, for as long as the cache keeps them."""
+    """content hash -> model name of every FMU in the build cache (FMI 2.0 and 3.0), whatever
+    version of the sources it was built from: the FMUs this machine built. A log of an earlier
+    version's run names such FMUs; they are ours, not native code of unknown origin, for as
+    long as the cache keeps them. An entry counts only when its FMU is there and hashes to its
+    record (as a cached build is checked before use), and when the folder, the FMU and the
+    record belong to this user and nobody else may write them: a file planted in a shared
+    cache makes nothing "ours"."""
     found: dict[str, str] = {}
     for root in (fmu_dir(), fmu_dir() / "fmi3"):
         for record in sorted(root.glob(f"*/{CONTENT_RECORD}")):
+            model = record.parent.name.rpartition("-")[0]
+            fmu = record.parent / f"{model}.fmu"
             try:
                 digest = record.read_text(encoding="ascii").strip()
+                stats = [os.stat(path) for path in (record.parent, record, fmu)]
             except (OSError, UnicodeDecodeError):
                 continue
-            if len(digest) == 64 and all(c in "0123456789abcdef" for c in digest):
-                found[digest] = record.parent.name.rpartition("-")[0]
+            if any(st.st_uid != os.getuid() or st.st_mode & 0o022 for st in stats):
+                continue
+            if _cached_content(str(fmu), stats[2].st_mtime_ns, stats[2].st_size) == digest:
+                found[digest] = model
     return found
+
+
+@lru_cache(maxsize=256)
+def _cached_content(path: str, *stat: int) -> str | None:
+    """The content hash of the cached FMU at `path` (`stat`: its identity now)."""
+    try:
+        return content_hash(path)
+    except (OSError, ValueError, UnsafeArchive, zipfile.BadZipFile):
+        return None
 
 
 def build_all(fmi_version: int = 2) -> dict[str, Path]:

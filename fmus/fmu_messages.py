@@ -5,12 +5,14 @@ Messages are printed as fmpy prints them, too."""
 from __future__ import annotations
 
 import ctypes
+from collections.abc import Callable
+from typing import Any
 
 _LAST_ERRORS: dict[bytes, list[str]] = {}  # instance name -> its last error message
 _CALLBACKS_2: list = []  # the one FMI 2.0 callbacks structure, made on first use
 
 
-def recording_callbacks_2(last_error: list[str], instance: str):
+def recording_callbacks_2(last_error: list[str], instance: str) -> Any:
     """fmpy's FMI 2.0 callbacks (messages printed as fmpy prints them, the variadic arguments
     formatted by fmpy's native proxy) that also keep each instance's last error message, in
     last_error[0] for `instance`. fmpy's proxy holds one Python logger for the whole process,
@@ -41,7 +43,7 @@ def recording_callbacks_2(last_error: list[str], instance: str):
     return callbacks
 
 
-def recording_logger_3(last_error: list[str]):
+def recording_logger_3(last_error: list[str]) -> Callable[..., None]:
     """fmpy's FMI 3.0 log printer that also keeps the last error message in last_error[0]."""
     from fmpy.fmi3 import printLogMessage
 

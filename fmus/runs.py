@@ -203,7 +203,8 @@ class FastSlave:
                     raise RuntimeError(f"{label}: {get_name} failed at t = {t}{said()}")
                 return out
 
-        name = f"step[{label.replace(']', ')')}]"
+        # Code objects compare by value: the serial keeps two instances of one name apart.
+        name = f"step[{label.replace(']', ')')}]#{self.making[1]}"
         step.__code__ = step.__code__.replace(co_name=name, co_qualname=name)
         STEP_CODES.add(step.__code__)
         self.step = step

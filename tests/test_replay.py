@@ -156,29 +156,6 @@ def test_an_fmu_that_is_not_our_build_needs_trust(foreign_run, foreign_fmu, pape
     assert [r["mass_kg"] for r in records] == [r["mass_kg"] for r in paper_run[1]]
 
 
-def test_a_log_of_an_earlier_version_made_here_replays_without_trust(runs, paper_run):
-    """The cylinder built here from other sources (an earlier version's, as far as this tree
-    knows: a changed comment gives another content hash) is in the build cache: its log
-    replays without --trust, as "earlier local build"; once the cache forgets the build, the
-    FMU is native code of unknown origin again."""
-    model = Path(shutil.copytree(fmus.builder.MODELS_DIR / "HydraulicCylinder",
-                                 runs / "earlier" / "HydraulicCylinder"))
-    source = model / "model.c"
-    source.write_text(source.read_text() + "/* an earlier version's sources */\n")
-    built = fmus.build_model(model)
-    assert fmus.content_hash(built) not in fmus.local_content_hashes()
-    assert fmus.cached_content_hashes()[fmus.content_hash(built)] == "HydraulicCylinder"
-    path, records = _boom_run(runs, Path(shutil.copyfile(built, runs / "earlier.fmu")),
-                              "earlier")
-    report = replay_run(path)
-    _assert_repeats(report, records)
-    assert report.fmus["boom"].trusted_by == "earlier local build"
-    assert report.fmus["stick"].trusted_by == "local build"
-    shutil.rmtree(built.parent)  # the cache may be removed at any time
-    with pytest.raises(ReplayRefused, match="not an FMU built from this version's sources"):
-        replay_run(path)
-
-
 def test_our_build_in_another_zip_is_our_build(annotated_run, annotated_fmu, paper_run):
     """Identity is content: a documentation file more changes the zip's bytes, not the FMU."""
     path, records = annotated_run

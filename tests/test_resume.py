@@ -200,6 +200,8 @@ def test_a_run_that_is_still_writing_its_log_is_not_resumed(folder):
                            "going") as refused:
             prepare_resume(path)
         seen.append(str(refused.value))
+        with pytest.raises(OSError, match="is being written by a run that is still going"):
+            open_run_log(scenario(), path, overwrite=True)  # nor is it written over
         raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):

@@ -7,6 +7,7 @@ native code (tests/faulty_fmus.py), in real processes."""
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -41,12 +42,13 @@ def faulty(tmp_path_factory) -> dict[str, Path]:
     return made
 
 
-def _run(tmp_path: Path, fmu: Path, *extra: str, periods: int = 3):
+def _run(tmp_path: Path, fmu: Path, *extra: str, periods: int = 3, quiet: bool = True):
     temporary = tmp_path / "tmp"
     temporary.mkdir(exist_ok=True)
     done = subprocess.run(
         [sys.executable, "-c", MAIN, "run", str(PAPER), "--periods", str(periods), "-o",
-         "run.mcap", "--trust", "-q", "--set", f"plant.boom.fmu={fmu}", *extra],
+         "run.mcap", "--trust", *(["-q"] if quiet else []), "--set",
+         f"plant.boom.fmu={fmu}", *extra],
         capture_output=True, text=True, cwd=tmp_path, timeout=300,
         env={**os.environ, "PYTHONPATH": str(ROOT), "TMPDIR": str(temporary)})
     return done, temporary
@@ -79,6 +81,15 @@ def test_a_crashing_fmu_ends_the_run_with_its_reason_in_the_log(tmp_path, faulty
     assert summary is not None and summary.statistics.message_count > 0
     assert list(temporary.iterdir()) == []  # the child's extracted FMUs are removed
     assert prepare_resume(log).k == 1  # and the run can be resumed after its last period
+
+
+def test_run_json_of_a_crashed_run_is_the_object_of_its_closed_log(tmp_path, faulty):
+    done, _ = _run(tmp_path, faulty["segfault"], "--json", quiet=False)
+    assert done.returncode == 1
+    data = json.loads(done.stdout)  # one object, nothing else
+    assert data["termination"] == "error" and len(data["periods"]) == 1
+    assert data["message"].startswith(f"period 2: {CAUSES['segfault']}")
+    assert data["path"] == "run.mcap" and data["figures"]["periods"] == 1
 
 
 def test_without_the_supervisor_the_same_crash_takes_the_log_s_end_record_along(tmp_path,

@@ -60,7 +60,7 @@ PAPER = ROOT / "scenarios" / "paper-2020.toml"
     (["plant.pile.parameters.z_floor=0.5"], "plant.pile.parameters.z_floor",
      "Pile does not initialise with these parameters: z_floor must lie below z_surface0"),
     (["plant.pile.parameters.density=1.6e12"], "plant.pile.parameters.density",
-     "density must lie in [100, 10000] kg/m3"),  # the bucket would weigh 9e10 kg
+     "value of 'density' lies outside its range [100, 10000]"),  # a bucket of 9e10 kg
     (["plant.communication_step_s=0.05"], "plant.stick",
      "cannot damp the hydraulic mode"),
 ])

@@ -65,3 +65,23 @@ def test_steps_that_keep_returning_are_never_reported():
     assert reports == [] and stuck_step(sys._getframe()) is None
     with pytest.raises(ValueError, match="step timeout must be > 0 s"):
         StepWatchdog(0.0, reports.append)
+
+
+def test_every_instance_s_step_is_known_whatever_its_name_and_whoever_was_freed():
+    """Code objects compare by value: two instances called "boom" (a sweep worker's second
+    campaign) must not share one entry that goes when the first instance is freed."""
+    import gc
+
+    from fmus.runs import STEP_CODES
+
+    built = fmus.build("HydraulicCylinder")
+    first = FastSlave(built, ["u"], ["x"], instance_name="boom")
+    second = FastSlave(built, ["u"], ["x"], instance_name="boom")
+    try:
+        assert first.step.__code__ != second.step.__code__
+        first.close()
+        del first
+        gc.collect()
+        assert second.step.__code__ in STEP_CODES
+    finally:
+        second.close()

@@ -17,10 +17,12 @@ file, the parent waits. When the child ends without handing an outcome back, the
 - removes the child's temporary folders (the extracted FMUs): the child's temporary folder is
   one the parent made.
 
-Signals: the child has its own process group, so a Ctrl-C at the terminal reaches the parent
-alone, which passes SIGINT and SIGTERM on to the child: the child stops as an unsupervised run
-does (orchestrator.cli.signals) and its outcome comes back. The child is killed when the parent
-dies (Linux's PR_SET_PDEATHSIG), so SIGKILL on the parent still ends the run at once.
+Signals: the child stays in the terminal's process group (so Ctrl-Z stops both, and a terminal
+with `tostop` lets it write); the parent passes SIGINT and SIGTERM on to the child, which acts
+on the first SIGINT it gets (a Ctrl-C at the terminal reaches it twice) and stops as an
+unsupervised run does (orchestrator.cli.signals); its outcome comes back. The child is killed
+when the parent dies (Linux's PR_SET_PDEATHSIG), so SIGKILL on the parent still ends the run at
+once.
 
 Linux only (fork, PR_SET_PDEATHSIG): elsewhere `available()` is False and the caller runs the
 campaign in its own process.
@@ -37,6 +39,7 @@ import shutil
 import signal
 import sys
 import tempfile
+import threading
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -65,43 +68,46 @@ class ChildDied:
     log_note: str = ""
 
 
-def supervised(body: Callable[[], Any], log_path: Path, period_offset: int = 0
-               ) -> Any | ChildDied:
+def supervised(body: Callable[[], Any], log_path: Path, period_offset: int = 0,
+               release: Callable[[], None] | None = None) -> Any | ChildDied:
     """body() in a child process; its return value (JSON-able) when it returns, else ChildDied.
     log_path: the run log the child writes (closed here if the child dies before closing it);
     period_offset: periods the log held before the child started (a resumed run), for the
-    period named in the message when the log cannot be read."""
+    period named in the message when the log cannot be read; release: called once the child
+    has ended, before the log is looked at (e.g. to drop a lock the child inherited)."""
     folder = Path(tempfile.mkdtemp(prefix="excosim-run-"))
     try:
         (folder / "tmp").mkdir()
         sys.stdout.flush()
         sys.stderr.flush()
-        child = [0]
+        ctypes.CDLL(None).fflush(None)  # C stdio buffers, or the child would write them again
+        parent, child = os.getpid(), [0]
         previous = {signum: signal.signal(signum, _forward_to(child)) for signum in _FORWARDED}
+        gc.freeze()  # the child's collector then leaves the parent's objects (and pages) be
         try:
-            gc.freeze()  # the child's collector then leaves the parent's objects (and pages) be
             pid = os.fork()
             if pid == 0:
-                _child(body, folder, previous)  # never returns
-            gc.unfreeze()
+                _child(body, folder, previous, parent)  # never returns
             child[0] = pid
-            try:
-                os.setpgid(pid, pid)  # also done by the child: whichever comes first
-            except OSError:
-                pass
             _, status = os.waitpid(pid, 0)  # PEP 475: a forwarded signal does not end the wait
         finally:
+            gc.unfreeze()
             for signum, handler in previous.items():
                 signal.signal(signum, handler)
-        outcome = folder / "outcome.json"
-        if outcome.exists():
-            return json.loads(outcome.read_text())
-        return _died(status, folder / "crash.txt", log_path, period_offset)
+        if release is not None:
+            release()
+        try:
+            return json.loads((folder / "outcome.json").read_text())
+        except (OSError, ValueError):  # none handed back (or half of one): the child died
+            return _died(status, folder / "crash.txt", log_path, period_offset)
     finally:
         shutil.rmtree(folder, ignore_errors=True)
 
 
 def _forward_to(child: list[int]) -> Callable[[int, Any], None]:
+    """A handler that passes the signal on to the child. The child shares the terminal's
+    process group, so a Ctrl-C at the terminal reaches it twice (from the terminal and from
+    here): it acts on the first (_interrupt_once)."""
     def forward(signum: int, frame: Any) -> None:
         if child[0] > 0:
             try:
@@ -111,13 +117,19 @@ def _forward_to(child: list[int]) -> Callable[[int, Any], None]:
     return forward
 
 
-def _child(body: Callable[[], Any], folder: Path, handlers: dict) -> None:
+def _interrupt_once(signum: int, frame: Any) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the clean-up runs once, to its end
+    raise KeyboardInterrupt
+
+
+def _child(body: Callable[[], Any], folder: Path, handlers: dict, parent: int) -> None:
     code = 1
     try:
         for signum, handler in handlers.items():
             signal.signal(signum, handler)
-        os.setpgid(0, 0)
-        _die_with_parent()
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            signal.signal(signal.SIGINT, _interrupt_once)
+        _die_with(parent)
         tempfile.tempdir = os.environ["TMPDIR"] = str(folder / "tmp")
         crash = open(folder / "crash.txt", "w")  # noqa: SIM115 (open until the process ends)
         faulthandler.enable(crash, all_threads=False)
@@ -144,16 +156,16 @@ def end_child(outcome: Any) -> None:
 def _hand_back(folder: Path, outcome: Any) -> None:
     sys.stdout.flush()
     sys.stderr.flush()
-    written = folder / "outcome.json.part"
+    # The watchdog's thread and the main thread may both hand back: each its own part file.
+    written = folder / f"outcome.{threading.get_ident()}.part"
     written.write_text(json.dumps(outcome))
     written.replace(folder / "outcome.json")
 
 
-def _die_with_parent() -> None:
-    libc = ctypes.CDLL(None, use_errno=True)
-    parent = os.getppid()
-    libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
-    if os.getppid() != parent:  # the parent died before the request was in place
+def _die_with(parent: int) -> None:
+    """Have the kernel kill this child when `parent` (the pid before the fork) dies."""
+    ctypes.CDLL(None).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    if os.getppid() != parent:  # it died before the request was in place
         os._exit(1)
 
 
@@ -189,8 +201,14 @@ def _died(status: int, crash: Path, log_path: Path, period_offset: int) -> Child
     from orchestrator.runlog.resume import close_unfinished
 
     code = os.waitstatus_to_exitcode(status)
-    how = f"died (signal {-code}, {signal.Signals(-code).name})" if code < 0 else \
-        f"ended (exit status {code})"
+    if code < 0:
+        try:
+            name = f", {signal.Signals(-code).name}"
+        except ValueError:  # a real-time signal has no name
+            name = ""
+        how = f"died (signal {-code}{name})"
+    else:
+        how = f"ended (exit status {code})"
     try:
         dump = crash.read_text(errors="replace")
     except OSError:
@@ -210,7 +228,11 @@ def _died(status: int, crash: Path, log_path: Path, period_offset: int) -> Child
     try:
         from orchestrator.runlog.reader import read_run
 
-        done = len(read_run(log_path).periods)
+        run = read_run(log_path)
+        done = len(run.periods)
+        if run.finished:  # e.g. a crash while the plant was closed, after the end record
+            return ChildDied(f"the run's process {how}{where} after its log was closed "
+                             f"(termination {run.termination})", done)
     except (OSError, RunLogError):
         done = period_offset
     message = f"period {done + 1}: the run's process {how}{where}"

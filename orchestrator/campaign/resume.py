@@ -25,12 +25,14 @@ from __future__ import annotations
 
 import io
 from collections.abc import Callable
+from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from orchestrator.campaign.loop import CampaignResult, Start, build_plant, run_opened
 from orchestrator.campaign.resume_state import parse_resume_record
+from orchestrator.campaign.watchdog import StepWatchdog
 from orchestrator.runlog.reader import RunFile, RunLogError, parse_run
 from orchestrator.scenario.model import Scenario
 
@@ -57,22 +59,42 @@ class ResumeSource:
     k: int
     record: dict[str, Any]
     prefix: bytes
+    lock: Any = None  # the log's file, its writer's lock held (orchestrator.runlog.lock)
 
     @property
     def records(self) -> list[dict[str, Any]]:
         """The period records the resumed run keeps (periods 1..k)."""
         return self.run.periods[:self.k]
 
+    def release(self) -> None:
+        """Drop the lock on the source log (once the continued log has replaced it)."""
+        if self.lock is not None:
+            self.lock.close()
+            self.lock = None
+
 
 def prepare_resume(path: str | Path) -> ResumeSource:
-    """Check the log at `path` for resuming (steps 1-2 of the module docstring). Raises
-    ResumeRefused, NothingToResume, ScenarioError (its scenario does not validate with this
-    version) and fmus.BuildError (our FMUs cannot be built)."""
+    """Check the log at `path` for resuming (steps 1-2 of the module docstring) and hold its
+    lock, so that no other process writes or resumes it meanwhile (ResumeSource.release).
+    Raises ResumeRefused (a log that is being written among others), NothingToResume,
+    ScenarioError (its scenario does not validate with this version) and fmus.BuildError (our
+    FMUs cannot be built)."""
+    path = Path(path)
+    run, data, lock = _read(path)
+    try:
+        source = _prepare(path, run, data)
+    except BaseException:
+        if lock is not None:
+            lock.close()
+        raise
+    source.lock = lock
+    return source
+
+
+def _prepare(path: Path, run: RunFile, data: bytes) -> ResumeSource:
     from orchestrator.runlog.resume import continuation_prefix
     from orchestrator.scenario import scenario_from_dict
 
-    path = Path(path)
-    run, data = _read(path)
     problem = run.not_simulated("be resumed")
     if problem is not None:
         raise ResumeRefused(problem)
@@ -110,23 +132,27 @@ def prepare_resume(path: str | Path) -> ResumeSource:
     return ResumeSource(path, run, scenario, k, record, prefix)
 
 
-def _read(path: Path) -> tuple[RunFile, bytes]:
+def _read(path: Path) -> tuple[RunFile, bytes, Any]:
     import stat
 
-    from orchestrator.runlog.lock import being_written
+    from orchestrator.runlog.lock import hold
 
     try:
         if not stat.S_ISREG(path.stat().st_mode):
             raise ResumeRefused(f"{path} is not a regular file (a folder, FIFO or device)")
-        if being_written(path):
-            raise ResumeRefused(f"{path} is being written by a run that is still going "
-                                "(its writer holds the file's lock): stop it first")
+        try:
+            lock = hold(path)
+        except BlockingIOError:
+            raise ResumeRefused(f"{path} is being written by a run that is still going (its "
+                                "writer holds the file's lock): stop it first") from None
         data = path.read_bytes()
     except OSError as error:
         raise ResumeRefused(f"cannot read {path}: {error.strerror or error}") from None
     try:
-        return parse_run(path, data), data
+        return parse_run(path, data), data, lock
     except RunLogError as error:
+        if lock is not None:
+            lock.close()
         raise ResumeRefused(str(error)) from None
 
 
@@ -165,15 +191,36 @@ def resume_campaign(source: ResumeSource, output: str | Path | None = None, *,
     on_step_timeout: as run_campaign's. ResumeRefused when the plant refuses the state (an FMU
     that does not take its serialized state), OSError when the log cannot be made: nothing is
     written then. After that it fails as run_campaign does (termination "error")."""
+    try:
+        log, plant, start = _continue(source, output, overwrite, step_timeout_s,
+                                      on_step_timeout)
+    finally:
+        source.release()  # the continued log is in place, or nothing was written
+    return run_opened(source.scenario, log, plant, start, progress, step_timeout_s,
+                      on_step_timeout, log.path)
+
+
+def _continue(source: ResumeSource, output: str | Path | None, overwrite: bool,
+              step_timeout_s: float | None, on_step_timeout: Callable[[str], None] | None
+              ) -> tuple[Any, Any, Start]:
+    """The plant restored and the continued log open (resume_campaign), or an exception."""
     from orchestrator.runlog.metadata import package_versions
     from orchestrator.runlog.resume import open_continued
     from orchestrator.scenario.fmu_probe import capture_this_thread
 
     scenario, record, k = source.scenario, source.record, source.k
-    plant = build_plant(scenario)
+    # Loading the FMUs is watched as in a run (nothing is written yet: no log to close).
+    def watchdog():
+        if not (step_timeout_s and on_step_timeout):
+            return nullcontext()
+        return StepWatchdog(step_timeout_s,
+                            lambda detail: on_step_timeout(f"period {k + 1}: {detail}"))
+
+    with watchdog():
+        plant = build_plant(scenario)
     printed = io.StringIO()
     try:
-        with capture_this_thread(printed):  # fmpy prints the FMU's reason for a refusal
+        with capture_this_thread(printed), watchdog():  # fmpy prints an FMU's refusal's reason
             plant.restore_state(record["plant"])
     except ValueError as error:
         plant.close()
@@ -199,6 +246,5 @@ def resume_campaign(source: ResumeSource, output: str | Path | None = None, *,
         raise
     start = Start(k=k, records=tuple(source.records), t0_s=record["t0_next_s"],
                   state=record["adaptation"], weighed_mass_kg=record["weighed_mass_kg"])
-    return run_opened(scenario, log, plant, start, progress, step_timeout_s, on_step_timeout,
-                      log.path)
+    return log, plant, start
 

@@ -23,9 +23,10 @@ import sys
 import threading
 import time
 from collections.abc import Callable
+from types import FrameType
 
 
-def stuck_step(frame) -> tuple[int, float, str] | None:
+def stuck_step(frame: FrameType | None) -> tuple[int, float, str] | None:
     """(id of the instance, step start time t (s), "instance (model)") when `frame` is an FMU
     step (a FastSlave's step function, fmus.runs.STEP_CODES), else None."""
     from fmus.runs import STEP_CODES
@@ -39,7 +40,7 @@ def stuck_step(frame) -> tuple[int, float, str] | None:
     return id(component), float(t), str(label)
 
 
-def stuck_call(frame) -> tuple[tuple, str, str] | None:
+def stuck_call(frame: FrameType | None) -> tuple[tuple, str, str] | None:
     """(key, "instance (model)", which call) for the FMU call the main thread's innermost
     frame `frame` is in: a step ("its step at t = ... s"; key: instance and step time) or the
     loading and initialization of an instance ("its instantiation and initialization", inside

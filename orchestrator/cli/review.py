@@ -16,7 +16,7 @@ from rich.text import Text
 
 from orchestrator.cli import export, tables
 from orchestrator.cli.conventions import count, json_text
-from orchestrator.cli.run import period_grid
+from orchestrator.cli.run_output import period_grid
 from orchestrator.review import summary as review
 from orchestrator.runlog import RunLogError
 

@@ -27,17 +27,16 @@ from typing import Any
 
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-from rich.text import Text
 
 from orchestrator.cli import tables
 from orchestrator.cli.conventions import count, fail, json_text
+from orchestrator.cli.run_output import logged_json, period_grid, run_json, summary_line
 from orchestrator.cli.signals import (
     INTERRUPTED_EXIT,
     TERMINATED_EXIT,
     Terminated,
     terminate_like_ctrl_c,
 )
-from orchestrator.review.summary import band_kg, ending, run_figures
 
 RUNS = Path("runs")  # where logs go without -o, relative to the working folder
 
@@ -216,17 +215,30 @@ def _dig(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_json:
         return _dig_here(scenario, log_path, **settings)
     from orchestrator.campaign.isolation import ChildDied, supervised
 
+    def body() -> tuple[str, int] | None:  # what run() would make of a stop outside _dig_here
+        try:
+            return _dig_here(scenario, log_path, **settings)
+        except Terminated:
+            return f"terminated (SIGTERM) {_OUTSIDE}", TERMINATED_EXIT
+        except KeyboardInterrupt:
+            return f"interrupted {_OUTSIDE}", INTERRUPTED_EXIT
+
     before = len(resume.records) if resume is not None else 0
-    outcome = supervised(lambda: _dig_here(scenario, log_path, **settings), log_path, before)
-    if isinstance(outcome, ChildDied):
-        if outcome.periods is not None:
-            where = f"log {log_path} is readable up to period {outcome.periods}"
-        elif _drop_if_empty(log_path, reserved):
-            where = "no log was written"
-        else:
-            where = f"log {log_path}: {outcome.log_note}"
-        return f"run failed: {outcome.message} ({where})", 1
-    return None if outcome is None else (str(outcome[0]), int(outcome[1]))
+    outcome = supervised(body, log_path, before,
+                         release=resume.release if resume is not None else None)
+    if not isinstance(outcome, ChildDied):
+        return None if outcome is None else (str(outcome[0]), int(outcome[1]))
+    if sys.stderr.isatty():  # the child's progress bar hid the cursor and holds the line
+        sys.stderr.write("\r\x1b[2K\x1b[?25h")
+    if outcome.periods is not None:
+        where = f"log {log_path} is readable up to period {outcome.periods}"
+        if as_json:
+            print(json_text(logged_json(log_path, outcome.message)))
+    elif _drop_if_empty(log_path, reserved):
+        where = "no log was written"
+    else:
+        where = f"log {log_path}: {outcome.log_note}"
+    return f"run failed: {outcome.message} ({where})", 1
 
 
 def _dig_here(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_json: bool,
@@ -254,7 +266,7 @@ def _dig_here(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_
                 bar.stop()
                 line = f"run stopped: {message} (log {log_path} is readable up to period " \
                     f"{len(done)})"
-                end_child((line, 1))  # a supervised child hands the line to its parent
+                end_child((line, 1))  # a supervised child: its parent prints it
                 fail(line)
                 sys.stdout.flush()
                 sys.stderr.flush()
@@ -326,53 +338,13 @@ def _check_output(path: Path, force: bool) -> str | None:
     if path.exists() and not force:
         return (f"output {str(path)!r} already exists; remove it, choose another name or add "
                 "--force")
+    from orchestrator.runlog.lock import being_written
+
+    if path.exists() and being_written(path):
+        return (f"output {str(path)!r} is being written by a run that is still going; not "
+                "even --force writes over it")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as error:
         return f"output {str(path)!r}: cannot create its folder: {error.strerror or error}"
     return None
-
-
-def run_json(result: Any, log_path: Path) -> dict[str, Any]:
-    """The `excosim run --json` object: the keys of `excosim review --json` that a run knows
-    (scenario, plant, target_mass_kg, termination, message, path, periods, figures)."""
-    target = result.scenario.target_mass_kg
-    return {"scenario": result.scenario.name, "plant": result.scenario.plant.kind,
-            "target_mass_kg": target, "termination": result.termination,
-            "message": result.message, "path": str(log_path), "periods": result.records,
-            "figures": run_figures(result.records, band_kg(target))}
-
-
-def period_grid(records: list[dict[str, Any]], target_mass_kg: float) -> tables.Grid:
-    """One row per period: k, D, mass, error (green within the on-target band,
-    `orchestrator.review.summary.band_kg`), reset, duration, peak jerk, planner."""
-    band = band_kg(target_mass_kg)
-    columns = [tables.Column("k"), tables.Column("D (y, z)", "m"), tables.Column("mass", "kg"),
-               tables.Column("error", "kg"), tables.Column("reset", blank="no"),
-               tables.Column("duration", "s"), tables.Column("peak jerk", "°/s³"),
-               tables.Column("planner", "ms")]
-    rows: list[list[str | Text]] = []
-    for r in records:
-        y, z = r["deepest_point_m"]
-        error = r["error_kg"]
-        style = "green" if abs(error) <= band else "yellow"
-        rows.append([str(r["k"]), f"({y:.2f}, {z:.3f})", f"{r['mass_kg']:.2f}",
-                     Text(f"{error:+.2f}", style=style), "yes" if r["reset"] else "",
-                     f"{r['duration_s']:.2f}", f"{max(r['max_abs_jerk_deg_s3']):.1f}",
-                     f"{r['planner_ms']:.1f}"])
-    return tables.Grid(f"Digging periods (target {target_mass_kg:g} kg)", columns, rows,
-                       caption="duration: of the planned trajectory; peak jerk: largest |jerk| "
-                       "of the three joints; planner: optimisation wall time",
-                       heading="period {}")
-
-
-def summary_line(result: Any, target_mass_kg: float) -> str:
-    """How the campaign ended, periods within the on-target band after period 1 (+-3 kg at
-    the paper's 30 kg), log path."""
-    band = band_kg(target_mass_kg)
-    within, counted = result.periods_within(band, first_period=2)
-    share = f"{within}/{counted} ({100.0 * within / counted:.0f} %)" if counted else "none"
-    log = f"; log: {result.log_path}" if result.log_path is not None else ""
-    how = ending({"periods": result.records, "finished": True, "truncated": False,
-                  "termination": result.termination, "message": result.message})
-    return f"{how}; within +/-{band:g} kg after period 1: {share}{log}"

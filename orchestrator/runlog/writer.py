@@ -52,7 +52,7 @@ from foxglove.messages import FrameTransforms, SceneUpdate
 
 from orchestrator.runlog import scene
 from orchestrator.runlog.chunk import ChunkBuilder, DoubleBatch
-from orchestrator.runlog.lock import lock_for_writing
+from orchestrator.runlog.lock import being_written, lock_for_writing
 from orchestrator.runlog.mcap_records import McapChunkWriter
 from orchestrator.runlog.metadata import (
     FORMAT,
@@ -117,6 +117,8 @@ class RunLog:
             raise ValueError(f"sample_rate_hz must be > 0 or None, got {sample_rate_hz!r}")
         fmu_files = read_fmus(fmus)
         scenario_json = to_json(dict(scenario), "scenario")
+        if overwrite and being_written(path):
+            raise OSError(f"run log {path} is being written by a run that is still going")
         try:
             stream = open(Path(path), "wb" if overwrite else "xb")
         except FileExistsError:
