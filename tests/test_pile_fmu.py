@@ -8,6 +8,7 @@ McKyes (1985) wedge model with scipy's bounded minimiser; the analytic area of a
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 
 import numpy as np
 import pytest
@@ -430,44 +431,41 @@ def test_surface_at_tip_interpolates_between_cell_centres(make_pile):
     assert o["surface_z_at_tip"] == h[0]
 
 
-@pytest.mark.parametrize(("name", "value"), [
-    ("y_max", -14.0), ("repose_angle", 0.0), ("tool_friction_angle", 40 * DEG),
-    ("capacity", -0.1), ("heap_half_width", 0.0),
-    ("ground_slope", 60 * DEG), ("ground_slope", -0.62)])
-def test_bad_parameters_fail_initialization_naming_the_parameter(built, capsys, name, value):
+@contextmanager
+def _initializing(built):
+    """A Pile instance in initialization mode and its value references by name; freed after."""
     description, unzip = built
-    vr = {v.name: v.valueReference for v in description.modelVariables}
     fmu = FMU2Slave(guid=description.guid, unzipDirectory=unzip, modelIdentifier="Pile",
                     instanceName="bad")
     fmu.instantiate()
     try:
         fmu.setupExperiment(startTime=0.0)
         fmu.enterInitializationMode()
+        yield fmu, {v.name: v.valueReference for v in description.modelVariables}
+    finally:
+        fmu.freeInstance()
+
+
+@pytest.mark.parametrize(("name", "value"), [
+    ("y_max", -14.0), ("repose_angle", 0.0), ("tool_friction_angle", 40 * DEG),
+    ("capacity", -0.1), ("heap_half_width", 0.0),
+    ("ground_slope", 60 * DEG), ("ground_slope", -0.62)])
+def test_bad_parameters_fail_initialization_naming_the_parameter(built, capsys, name, value):
+    with _initializing(built) as (fmu, vr):
         fmu.setReal([vr[name]], [value])
         with pytest.raises(FMICallException):
             fmu.exitInitializationMode()
         assert name in capsys.readouterr().out
-    finally:
-        fmu.freeInstance()
 
 
 @pytest.mark.parametrize("value", [0.0, 99.0, 10001.0, 1.6e12, float("nan")])
 def test_a_density_outside_what_soil_and_rock_weigh_is_refused_naming_it(built, capsys, value):
     """Bulk densities run from about 300 kg/m3 (peat) to 5000 kg/m3 (iron ore): the Pile takes
     [100, 10000] (its declared min and max, checked when set) and refuses the rest."""
-    description, unzip = built
-    vr = {v.name: v.valueReference for v in description.modelVariables}
-    fmu = FMU2Slave(guid=description.guid, unzipDirectory=unzip, modelIdentifier="Pile",
-                    instanceName="bad")
-    fmu.instantiate()
-    try:
-        fmu.setupExperiment(startTime=0.0)
-        fmu.enterInitializationMode()
+    with _initializing(built) as (fmu, vr):
         with pytest.raises(FMICallException):
             fmu.setReal([vr["density"]], [value])
         assert "density" in capsys.readouterr().out
-    finally:
-        fmu.freeInstance()
 
 
 @pytest.mark.parametrize(("angle_deg", "share"), [
