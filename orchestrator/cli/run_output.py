@@ -15,11 +15,16 @@ from orchestrator.review.summary import band_kg, ending, run_figures
 def run_json(result: Any, log_path: Path) -> dict[str, Any]:
     """The `excosim run --json` object: the keys of `excosim review --json` that a run knows
     (scenario, plant, target_mass_kg, termination, message, path, periods, figures)."""
-    target = result.scenario.target_mass_kg
-    return {"scenario": result.scenario.name, "plant": result.scenario.plant.kind,
-            "target_mass_kg": target, "termination": result.termination,
-            "message": result.message, "path": str(log_path), "periods": result.records,
-            "figures": run_figures(result.records, band_kg(target))}
+    return _json(result.scenario.name, result.scenario.plant.kind,
+                 result.scenario.target_mass_kg, result.termination, result.message, log_path,
+                 result.records)
+
+
+def _json(scenario: str | None, plant: str | None, target_mass_kg: float, termination: str,
+          message: str, log_path: Path, periods: list[dict[str, Any]]) -> dict[str, Any]:
+    return {"scenario": scenario, "plant": plant, "target_mass_kg": target_mass_kg,
+            "termination": termination, "message": message, "path": str(log_path),
+            "periods": periods, "figures": run_figures(periods, band_kg(target_mass_kg))}
 
 
 def period_grid(records: list[dict[str, Any]], target_mass_kg: float) -> tables.Grid:
@@ -63,8 +68,6 @@ def logged_json(log_path: Path, message: str) -> dict[str, Any]:
 
     run = read_run(log_path)
     described = run.metadata.get("excosim.run", {})
-    target = float(described.get("target_mass_kg", "nan"))
-    return {"scenario": described.get("scenario_name"), "plant": described.get("plant_kind"),
-            "target_mass_kg": target, "termination": "error", "message": message,
-            "path": str(log_path), "periods": run.periods,
-            "figures": run_figures(run.periods, band_kg(target))}
+    return _json(described.get("scenario_name"), described.get("plant_kind"),
+                 float(described.get("target_mass_kg", "nan")), "error", message, log_path,
+                 run.periods)
