@@ -37,6 +37,10 @@ FMU_PARAMETER_NAMES: Mapping[str, str] = {
     "rated_flow_m3_s": "q_rated", "rated_pressure_drop_pa": "dp_rated", "mass_kg": "mass",
     "viscous_friction_n_s_m": "b_viscous",
 }
+# Parameters a cylinder may leave out: the value a valve has without them (symmetric edges).
+OPTIONAL_FMU_PARAMETERS: Mapping[str, tuple[str, float]] = {
+    "meter_out_ratio": ("meter_out_ratio", 1.0),
+}
 
 
 @dataclass(frozen=True)
@@ -46,7 +50,10 @@ class CylinderModel:
     bore_m, rod_m, stroke_m (m); dead volumes (m^3); bulk modulus and pressures (Pa, gauge);
     rated_flow_m3_s through one metering edge at rated_pressure_drop_pa (Pa); mass_kg the moving
     mass the FMU simulates (link inertia reflected onto the rod included); viscous friction
-    (N s/m).
+    (N s/m). meter_out_ratio: the meter-out edges' size over the meter-in edge's (1:
+    symmetric). compensated_drop_pa: the drop (Pa) a load-sensing supply holds across the
+    meter-in edge (plant_models.supply: its margin); 0: no compensator, the edge takes what the
+    constant supply pressure leaves.
     """
 
     bore_m: float
@@ -61,6 +68,8 @@ class CylinderModel:
     rated_pressure_drop_pa: float
     mass_kg: float
     viscous_friction_n_s_m: float
+    meter_out_ratio: float = 1.0
+    compensated_drop_pa: float = 0.0
 
     def __post_init__(self) -> None:
         for item in fields(self):
@@ -69,7 +78,8 @@ class CylinderModel:
                     or not math.isfinite(value):
                 raise ValueError(f"CylinderModel.{item.name} must be a finite number, "
                                  f"got {value!r}")
-            may_be_zero = item.name in ("tank_pressure_pa", "viscous_friction_n_s_m")
+            may_be_zero = item.name in ("tank_pressure_pa", "viscous_friction_n_s_m",
+                                        "compensated_drop_pa")
             if value < 0.0 or (value == 0.0 and not may_be_zero):
                 raise ValueError(f"CylinderModel.{item.name} must be > 0, got {value!r}")
         if not self.rod_m < self.bore_m:
@@ -80,17 +90,22 @@ class CylinderModel:
     @classmethod
     def from_fmu_parameters(cls, values: Mapping[str, float]) -> CylinderModel:
         """The model from values named as our HydraulicCylinder FMU's parameters (bore, rod,
-        stroke, V_dead_A, V_dead_B, beta, p_supply, p_tank, q_rated, dp_rated, mass, b_viscous);
-        ValueError naming the first one missing."""
+        stroke, V_dead_A, V_dead_B, beta, p_supply, p_tank, q_rated, dp_rated, mass, b_viscous;
+        meter_out_ratio if given); ValueError naming the first one missing."""
         missing = [name for name in FMU_PARAMETER_NAMES.values() if name not in values]
         if missing:
             raise ValueError(f"cylinder parameter {missing[0]!r} is missing (the servo needs "
                              f"{', '.join(FMU_PARAMETER_NAMES.values())})")
-        return cls(**{key: float(values[name]) for key, name in FMU_PARAMETER_NAMES.items()})
+        optional = {key: float(values.get(name, default))
+                    for key, (name, default) in OPTIONAL_FMU_PARAMETERS.items()}
+        return cls(**{key: float(values[name]) for key, name in FMU_PARAMETER_NAMES.items()},
+                   **optional)
 
     def fmu_parameters(self) -> dict[str, float]:
         """This model as parameter values of our HydraulicCylinder FMU."""
-        return {name: getattr(self, key) for key, name in FMU_PARAMETER_NAMES.items()}
+        names = {**FMU_PARAMETER_NAMES,
+                 **{key: name for key, (name, _) in OPTIONAL_FMU_PARAMETERS.items()}}
+        return {name: getattr(self, key) for key, name in names.items()}
 
     @property
     def area_a_m2(self) -> float:
@@ -135,20 +150,41 @@ class CylinderModel:
 
     def opening(self, velocity_m_s: float, force_n: float) -> float:
         """Spool opening u in [-1, 1] that drives the piston at velocity_m_s (m/s) in steady
-        state with the hydraulic force force_n (N).
+        state with the hydraulic force force_n (N): velocity_m_s / gain(direction, force_n)
+        (`velocity_gain`)."""
+        return min(1.0, max(-1.0, velocity_m_s / self.velocity_gain(velocity_m_s, force_n)))
 
-        Both metering edges pass the piston's flow (Q_A = A_A v, Q_B = A_B v, orifice law
-        Q = q_rated u sqrt(dp / dp_rated)); with F = p_A A_A - p_B A_B that gives
-        (v / (q_rated u))^2 dp_rated (A_A^3 + A_B^3) = p_S A_A - p_T A_B - F when extending and
-        F - p_T A_A + p_S A_B when retracting (at least MIN_FORCE_RESERVE of p_S A_A).
+    def velocity_gain(self, velocity_m_s: float, force_n: float) -> float:
+        """m/s of steady piston velocity per unit of spool opening, in the direction of
+        velocity_m_s, with the hydraulic force force_n (N).
+
+        Constant supply: both metering edges pass the piston's flow (Q_A = A_A v, Q_B = A_B v,
+        orifice law Q = q u sqrt(dp / dp_rated), q = q_rated in, r q_rated out, r the
+        meter_out_ratio); with F = p_A A_A - p_B A_B that gives
+        (v / (q_rated u))^2 dp_rated (A_A^3 + A_B^3 / r^2) = p_S A_A - p_T A_B - F extending and
+        (v / (q_rated u))^2 dp_rated (A_A^3 / r^2 + A_B^3) = F - p_T A_A + p_S A_B retracting
+        (the right-hand side at least MIN_FORCE_RESERVE of p_S A_A).
+        Compensated meter-in (compensated_drop_pa = dp_c > 0): the meter-in edge passes
+        q_rated u sqrt(dp_c / dp_rated) whatever the load, v = that / A_in; a load that pulls
+        the piston (overrunning) drives it faster through the meter-out edge alone, the inlet
+        chamber near 0: v = r q_rated u sqrt((-F / A_B - p_T) / dp_rated) / A_B extending,
+        r q_rated u sqrt((F / A_A - p_T) / dp_rated) / A_A retracting. The larger one holds.
         """
-        a, b = self.area_a_m2, self.area_b_m2
+        a, b, r = self.area_a_m2, self.area_b_m2, self.meter_out_ratio
         p_s, p_t = self.supply_pressure_pa, self.tank_pressure_pa
+        q, dp = self.rated_flow_m3_s, self.rated_pressure_drop_pa
+        if self.compensated_drop_pa > 0.0:
+            metered = q * math.sqrt(self.compensated_drop_pa / dp)
+            if velocity_m_s >= 0.0:
+                pulled = -force_n / b - p_t
+                return max(metered / a, r * q * math.sqrt(max(pulled, 0.0) / dp) / b)
+            pulled = force_n / a - p_t
+            return max(metered / b, r * q * math.sqrt(max(pulled, 0.0) / dp) / a)
         if velocity_m_s >= 0.0:
             reserve = p_s * a - p_t * b - force_n
+            areas = a**3 + b**3 / (r * r)
         else:
             reserve = force_n - p_t * a + p_s * b
+            areas = a**3 / (r * r) + b**3
         reserve = max(reserve, MIN_FORCE_RESERVE * p_s * a)
-        gain = self.rated_flow_m3_s * math.sqrt(
-            reserve / (self.rated_pressure_drop_pa * (a**3 + b**3)))
-        return min(1.0, max(-1.0, velocity_m_s / gain))
+        return q * math.sqrt(reserve / (dp * areas))

@@ -5,7 +5,9 @@ co-simulation FMU with equivalent ports can replace one of ours. Roles:
 
 - cylinder (boom, stick, bucket): inputs `u` (spool command, -1..1, +1 extends), `F_ext` (N,
   load along the rod, positive resists extension), `mass_load` (kg, optional: the arm's inertia
-  reflected onto the rod, which the FMU integrates with its piston); outputs `x` (stroke, m),
+  reflected onto the rod, which the FMU integrates with its piston), `p_pump` and `p_LS` (Pa,
+  optional: a shared load-sensing pump's pressure and the load-sensing pressure, which a
+  load-sensing supply needs, plant_models.supply); outputs `x` (stroke, m),
   `v` (m/s), `p_A`, `p_B` (Pa; optional: an FMU without chambers has none), `F` (N; derivable,
   see DERIVABLE_OUTPUTS).
 - pile: inputs `tip_y`, `tip_z` (m), `bucket_angle` (rad, plant_models.geometry.pile_bucket_angle),
@@ -22,7 +24,7 @@ from types import MappingProxyType
 from plant_models.linear_cylinder import LinearCylinderModel
 from plant_models.port_units import PortMap
 
-CYLINDER_INPUTS: tuple[str, ...] = ("u", "F_ext", "mass_load")
+CYLINDER_INPUTS: tuple[str, ...] = ("u", "F_ext", "mass_load", "p_pump", "p_LS")
 CYLINDER_OUTPUTS: tuple[str, ...] = ("x", "v", "p_A", "p_B", "F")
 PILE_INPUTS: tuple[str, ...] = ("tip_y", "tip_z", "bucket_angle", "dump")
 PILE_OUTPUTS: tuple[str, ...] = (
@@ -30,10 +32,12 @@ PILE_OUTPUTS: tuple[str, ...] = (
 )
 # Ports a role's FMU may lack: an actuator without oil chambers (IdealActuator) has no chamber
 # pressures (the excavator then logs none: absent, not a made-up 0), and one that takes no load
-# mass has no `mass_load` (the arm's reflected inertia is then not fed to it).
+# mass has no `mass_load` (the arm's reflected inertia is then not fed to it); one on its own
+# supply has no `p_pump` / `p_LS` (it can only run with the constant supply).
 OPTIONAL_PORTS: Mapping[str, tuple[str, ...]] = MappingProxyType({
-    "cylinder": ("p_A", "p_B", "mass_load"), "pile": (),
+    "cylinder": ("p_A", "p_B", "mass_load", "p_pump", "p_LS"), "pile": (),
 })
+SUPPLY_INPUTS: tuple[str, ...] = ("p_pump", "p_LS")
 # Outputs the master computes when the FMU lacks them, from other outputs and parameters of the
 # role (orchestrator.plants.derived). The rule for a cylinder's force:
 #   F = p_A * A_A - p_B * A_B   (N; chamber pressures p_A, p_B in Pa; piston areas in m^2: A_A

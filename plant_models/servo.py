@@ -250,7 +250,8 @@ class JointServo:
     """
 
     __slots__ = ("_kp", "_kf", "_keep", "_gain", "_mass", "_filtered", "_last", "_extend",
-                 "_retract", "_least", "_per_reserve")
+                 "_retract", "_least", "_per_reserve_extend", "_per_reserve_retract",
+                 "_velocity_gain")
 
     def __init__(self, design: ServoDesign) -> None:
         two_over_t = 2.0 / design.step_s
@@ -267,9 +268,14 @@ class JointServo:
         self._extend = p_s * a - p_t * b  # reserve = extend - F, or F + retract
         self._retract = p_s * b - p_t * a
         self._least = MIN_FORCE_RESERVE * p_s * a
-        # gain = q_rated sqrt(reserve / (dp_rated (A_A^3 + A_B^3)))
-        self._per_reserve = model.rated_flow_m3_s**2 / (model.rated_pressure_drop_pa
-                                                        * (a**3 + b**3))
+        # gain = q_rated sqrt(reserve / (dp_rated (A_A^3 + A_B^3 / r^2))) extending, with
+        # A_A^3 / r^2 + A_B^3 retracting (CylinderModel.velocity_gain)
+        r2 = model.meter_out_ratio * model.meter_out_ratio
+        q2, dp = model.rated_flow_m3_s**2, model.rated_pressure_drop_pa
+        self._per_reserve_extend = q2 / (dp * (a**3 + b**3 / r2))
+        self._per_reserve_retract = q2 / (dp * (a**3 / r2 + b**3))
+        # A compensated meter-in edge: the model's own law (load-independent but for a pull).
+        self._velocity_gain = model.velocity_gain if model.compensated_drop_pa > 0.0 else None
         self._filtered = 0.0
         self._last: float | None = None
 
@@ -300,8 +306,16 @@ class JointServo:
         self._filtered = filtered
         self._last = excess
         velocity = v_ref + self._kp * (x_ref - x) - self._kf * filtered
-        reserve = self._extend - force if velocity >= 0.0 else force + self._retract
-        if reserve < self._least:
-            reserve = self._least
-        u = velocity / math.sqrt(reserve * self._per_reserve)
+        if self._velocity_gain is not None:
+            u = velocity / self._velocity_gain(velocity, force)
+        elif velocity >= 0.0:
+            reserve = self._extend - force
+            if reserve < self._least:
+                reserve = self._least
+            u = velocity / math.sqrt(reserve * self._per_reserve_extend)
+        else:
+            reserve = force + self._retract
+            if reserve < self._least:
+                reserve = self._least
+            u = velocity / math.sqrt(reserve * self._per_reserve_retract)
         return 1.0 if u > 1.0 else (-1.0 if u < -1.0 else u)

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from plant_models.cylinder_model import CylinderModel
 from plant_models.geometry import ExcavatorGeometry
 from plant_models.model_spec import FmuSpec
+from plant_models.supply import LoadSensingPump
 
 # The servo's design targets (plant_models.servo.design_servo): the DPF-closed hydraulic mode's
 # damping (the usual 0.5-0.8 of servo design), and margins above the required 45 deg / 6 dB so
@@ -44,6 +45,9 @@ class SimulatedExcavatorConfig:
         without one whose FmuSpec gives a `linear_model`, or whose FMU has other parameter
         names, gets the linear servo (plant_models.linear_servo) on that model or on the one
         identified from the FMU (orchestrator.plants.identify).
+    supply: the pump the three valves share (plant_models.supply.LoadSensingPump: flow
+        sharing, compensated meter-in edges; each cylinder FMU needs the inputs p_pump and
+        p_LS); None: each valve at its own constant supply pressure p_supply.
     """
 
     geometry: ExcavatorGeometry
@@ -62,6 +66,7 @@ class SimulatedExcavatorConfig:
     servo_phase_margin_deg: float = DEFAULT_PHASE_MARGIN_DEG
     cylinder_models: tuple[CylinderModel | None, CylinderModel | None,
                            CylinderModel | None] | None = None
+    supply: LoadSensingPump | None = None
 
     def __post_init__(self) -> None:
         for name in ("boom", "stick", "bucket", "pile"):
@@ -83,6 +88,8 @@ class SimulatedExcavatorConfig:
                                  f"got {value!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int):
             raise ValueError(f"SimulatedExcavatorConfig.seed must be an int, got {self.seed!r}")
+        if self.supply is not None and not isinstance(self.supply, LoadSensingPump):
+            raise ValueError("SimulatedExcavatorConfig.supply must be a LoadSensingPump or None")
         if self.pile.linear_model is not None:
             raise ValueError("SimulatedExcavatorConfig.pile.linear_model: only the cylinder "
                              "roles (boom, stick, bucket) take a linear model")

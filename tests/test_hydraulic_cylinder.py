@@ -338,10 +338,17 @@ def test_every_parameter_has_physical_bounds_and_the_inputs_are_open(fmu):
             assert v.min is not None and v.max is not None, v.name
             assert float(v.min) <= float(v.start) <= float(v.max), v.name
     inputs = {v.name: v for v in variables if v.causality == "input"}
-    assert set(inputs) == {"u", "F_ext", "mass_load"}
+    assert set(inputs) == {"u", "F_ext", "mass_load", "p_pump", "p_LS"}
     assert inputs["u"].min is None and inputs["u"].max is None  # clamped by the model
     assert inputs["F_ext"].min is None and inputs["F_ext"].max is None
     assert float(inputs["mass_load"].min) == 0.0
+    # Pressures are gauge (>= 0); the pump's start lies above every p_supply the table allows,
+    # so a cylinder on its own sees its constant supply.
+    p_supply = next(v for v in variables if v.name == "p_supply")
+    for name in ("p_pump", "p_LS"):
+        assert float(inputs[name].min) == 0.0 and float(inputs[name].max) == 1.0e9
+    assert float(inputs["p_pump"].start) > float(p_supply.max)
+    assert float(inputs["p_LS"].start) == 0.0
 
 
 @pytest.mark.parametrize("start, message", [

@@ -2,12 +2,17 @@
  * Valve-controlled asymmetric hydraulic cylinder (SI units, gauge pressures).
  *
  * States x (stroke), v, psi_A, psi_B (chamber pressure, or a cavitation void when negative).
- * Inputs u (spool), F_ext (load, positive resists extension), mass_load (reflected load mass).
- * Valve: critical-centre 4/3, a = clamp(u, -1, 1), q = q_rated*|a|, f(dp) = sign(dp)*sqrt(|dp|/
- *   dp_rated) (below dp_laminar the odd cubic of equal value and slope: finite gain at dp = 0)
- *   a > 0: Q_PA = q*f(max(p_S - p_A, 0)), Q_BT = q*f(p_B - p_T)   (P->A, B->T)
- *   a < 0: Q_PB = q*f(max(p_S - p_B, 0)), Q_AT = q*f(p_A - p_T)   (P->B, A->T)
+ * Inputs u (spool), F_ext (load, positive resists extension), mass_load (reflected load mass),
+ *   p_pump and p_LS (a shared load-sensing pump's pressure and the load-sensing pressure).
+ * Valve: critical-centre 4/3, a = clamp(u, -1, 1), q = q_rated*|a|, meter-out edges r*q
+ *   (r = meter_out_ratio), f(dp) = sign(dp)*sqrt(|dp|/dp_rated) (below dp_laminar the odd cubic
+ *   of equal value and slope: finite gain at dp = 0), p_S = min(p_pump, p_supply):
+ *   a > 0: Q_PA = q*f(max(p_S - max(p_LS, p_A), 0)), Q_BT = r*q*f(p_B - p_T)   (P->A, B->T)
+ *   a < 0: Q_PB = q*f(max(p_S - max(p_LS, p_B), 0)), Q_AT = r*q*f(p_A - p_T)   (P->B, A->T)
  *   max(., 0): the load-holding check in the P channel passes no flow back into the supply.
+ *   max(p_LS, p): a post-compensator (flow sharing, LUDV) between the meter-in edge and the
+ *   chamber holds the edge's outlet at the highest load pressure p_LS of all sections, so every
+ *   open section sees the same edge drop p_S - p_LS; p_LS = 0 (the start): no compensator.
  * Per chamber: relief to tank Q_rl = k_relief*max(p - p_relief, 0); make-up (anti-cavitation)
  *   check from tank Q_mu = k_makeup*max(p_T - dp_makeup - p, 0).
  * Chambers: V_A = V_dead_A + A_A*x, V_B = V_dead_B + A_B*(stroke - x), net inflow
@@ -23,7 +28,8 @@
  * Energy outputs (J since initialization; RK4 quadrature of the stage powers, see derivatives()):
  *   E_supply + E_mass_load = E_tank + E_throttling + E_relief + E_friction + E_load
  *                            + E_end_stop + E_stored - E_stored(0),
- *   E_stored = M*v^2/2 + E_oil, E_oil = sum over both chambers of the integral of p*(Q - dV/dt).
+ *   E_stored = M*v^2/2 + E_oil, E_oil = sum over both chambers of the integral of p*(Q - dV/dt);
+ *   E_compensator, the compensator's share of E_throttling (not a term of its own).
  * Integration: classical RK4 with n_substeps per step, more when h/n_substeps exceeds 2/lambda,
  *   lambda a bound of the Jacobian's spectral radius (stiffness_terms), recomputed each step for M.
  */
@@ -46,7 +52,11 @@ typedef struct {
 } Y;
 
 /* Stage powers (W) and their integrals (J). */
-enum { W_SUPPLY, W_TANK, W_THROTTLING, W_RELIEF, W_FRICTION, W_LOAD, W_END_STOP, W_OIL, N_POWER };
+enum {
+    W_SUPPLY, W_TANK, W_THROTTLING, W_RELIEF, W_FRICTION, W_LOAD, W_END_STOP, W_OIL,
+    W_COMPENSATOR, /* of W_THROTTLING: the compensator's part */
+    N_POWER
+};
 
 typedef struct {
     Y y;
@@ -66,6 +76,8 @@ typedef struct {
     double k_makeup, p_makeup; /* make-up opens below p_makeup = p_T - dp_makeup */
     double dp_laminar, inv_dp_rated, inv_sqrt_rated_laminar, M, inv_mass, F_c, inv_v_c, b;
     double q_open; /* q_rated*a: flow of one edge at dp_rated at the current opening, m^3/s */
+    double q_out;  /* meter_out_ratio*q_open: the same of a meter-out edge */
+    double p_LS;   /* compensator setting, Pa (0: none) */
     double a, F_ext;
 } P;
 
@@ -100,7 +112,8 @@ static double chamber_rate(double beta, double V, double dV_dt, double Q, double
  *
  * Powers, from the flows above (Q_PA... all >= 0 in their arrow's direction but Q_AT, Q_BT,
  * which reverse when p < p_T): supply p_S*(Q_PA + Q_PB); tank p_T*(Q_AT + Q_BT + Q_rl - Q_mu);
- * throttling the sum of dp*Q over the four edges and both make-up checks; relief
+ * throttling the sum of dp*Q over the four edges (the meter-in edge's from p_S to the chamber:
+ * its compensator's part (max(p_LS, p) - p)*Q is E_compensator) and both make-up checks; relief
  * (p - p_T)*Q_rl; oil p*(Q - dV/dt). Their balance is p_A*A_A*dx - p_B*A_B*dx = F*dx exactly
  * (p*Q telescopes edge by edge). The piston turns F*dx into load F_ext*dx, friction F_f*dx and
  * kinetic M*v*dv (dx = v off the stops); on a stop (dx = 0) the stage's kinetic power M*v*dv
@@ -113,17 +126,18 @@ static void derivatives(const P *p, const Y *y, Y *dy, double *w) {
     double p_A = fmax(y->psi_A, 0.0), p_B = fmax(y->psi_B, 0.0);
     double x = clamp(y->x, 0.0, p->stroke);
     double Q_PA = 0.0, Q_AT = 0.0, Q_PB = 0.0, Q_BT = 0.0, Q_A, Q_B, force, dx, dv, tanh_v;
+    double outlet_A = fmax(p->p_LS, p_A), outlet_B = fmax(p->p_LS, p_B); /* compensator */
     double relief_A = p->k_relief * fmax(p_A - p->p_relief, 0.0);
     double relief_B = p->k_relief * fmax(p_B - p->p_relief, 0.0);
     double makeup_A = p->k_makeup * fmax(p->p_makeup - p_A, 0.0);
     double makeup_B = p->k_makeup * fmax(p->p_makeup - p_B, 0.0);
     int on_stop = 0;
     if (p->a > 0.0) {
-        Q_PA = p->q_open * orifice(p, fmax(p->p_S - p_A, 0.0));
-        Q_BT = p->q_open * orifice(p, p_B - p->p_T);
+        Q_PA = p->q_open * orifice(p, fmax(p->p_S - outlet_A, 0.0));
+        Q_BT = p->q_out * orifice(p, p_B - p->p_T);
     } else if (p->a < 0.0) { /* q_open < 0 */
-        Q_AT = -(p->q_open * orifice(p, p_A - p->p_T));
-        Q_PB = -(p->q_open * orifice(p, fmax(p->p_S - p_B, 0.0)));
+        Q_AT = -(p->q_out * orifice(p, p_A - p->p_T));
+        Q_PB = -(p->q_open * orifice(p, fmax(p->p_S - outlet_B, 0.0)));
     }
     Q_A = Q_PA - Q_AT;
     Q_B = Q_PB - Q_BT;
@@ -161,6 +175,7 @@ static void derivatives(const P *p, const Y *y, Y *dy, double *w) {
     w[W_LOAD] = p->F_ext * dx;
     w[W_END_STOP] = on_stop ? -p->M * y->v * dv : 0.0;
     w[W_OIL] = p_A * (Q_A - p->A_A * dx) + p_B * (Q_B + p->A_B * dx);
+    w[W_COMPENSATOR] = (outlet_A - p_A) * Q_PA + (outlet_B - p_B) * Q_PB;
 }
 
 static void axpy(Y *out, const Y *y, double h, const Y *k) {
@@ -207,7 +222,8 @@ static void gather(const double *v, const State *s, P *p) {
     p->V_dead_A = v[VR_V_dead_A];
     p->V_dead_B = v[VR_V_dead_B];
     p->beta = v[VR_beta];
-    p->p_S = v[VR_p_supply];
+    p->p_S = fmin(v[VR_p_pump], v[VR_p_supply]);
+    p->p_LS = v[VR_p_LS];
     p->p_T = v[VR_p_tank];
     p->p_relief = v[VR_p_relief];
     p->k_relief = v[VR_k_relief];
@@ -223,6 +239,7 @@ static void gather(const double *v, const State *s, P *p) {
     p->b = v[VR_b_viscous];
     p->a = clamp(v[VR_u], -1.0, 1.0);
     p->q_open = v[VR_q_rated] * p->a;
+    p->q_out = v[VR_meter_out_ratio] * p->q_open;
     p->F_ext = clamp(v[VR_F_ext], -s->F_limit, s->F_limit);
 }
 
@@ -242,6 +259,7 @@ static void write_outputs(double *v, const State *s) {
     v[VR_E_end_stop] = s->energy[W_END_STOP];
     v[VR_E_mass_load] = s->E_mass_load;
     v[VR_E_stored] = 0.5 * s->M * s->y.v * s->y.v + s->energy[W_OIL];
+    v[VR_E_compensator] = s->energy[W_COMPENSATOR];
 }
 
 static int finite_positive(double value) { return isfinite(value) && value > 0.0; }
@@ -300,14 +318,16 @@ static const char *check_mass_load(double mass_load) {
 /* Upper bound of the Jacobian's spectral radius, 1/s: the hydraulic spring-mass frequency with
  * both chambers at their dead volumes (sqrt(spring/M)), plus the friction slope (damping/M),
  * plus the largest flow gain over the smallest chamber's capacitance V/beta (flow). Per chamber
- * one metering edge is open (slope at most 1.25*q_rated/sqrt(dp_rated*dp_laminar), at dp = 0),
+ * one metering edge is open (slope at most 1.25*q/sqrt(dp_rated*dp_laminar), at dp = 0, q the
+ * larger of q_rated and meter_out_ratio*q_rated; a compensator only flattens the meter-in edge),
  * and relief and make-up never open together (p_relief > p_T), so the larger of k_relief and
  * k_makeup counts; k_makeup only if the make-up can open at all (p_T > dp_makeup, as p >= 0).
  * All three terms fall as M grows, so they are kept and combined for each step's M. */
 static void stiffness_terms(const double *v, State *s) {
     double V_min = fmin(v[VR_V_dead_A], v[VR_V_dead_B]);
     /* The same operations as the per-stage constants in gather() use. */
-    double valve = 1.25 * v[VR_q_rated] * (1.0 / sqrt(v[VR_dp_rated] * v[VR_dp_laminar]));
+    double q_edge = v[VR_q_rated] * fmax(1.0, v[VR_meter_out_ratio]); /* the larger edge */
+    double valve = 1.25 * q_edge * (1.0 / sqrt(v[VR_dp_rated] * v[VR_dp_laminar]));
     double k_port = v[VR_p_tank] > v[VR_dp_makeup] ? fmax(v[VR_k_relief], v[VR_k_makeup])
                                                    : v[VR_k_relief];
     s->spring = v[VR_beta] * (s->A_A * s->A_A / v[VR_V_dead_A] + s->A_B * s->A_B / v[VR_V_dead_B]);

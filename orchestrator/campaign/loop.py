@@ -23,7 +23,7 @@ import contextlib
 import math
 import shutil
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -84,14 +84,8 @@ def build_plant(scenario: Scenario) -> Plant:
 
         return open_lab_plant(scenario)
     from orchestrator.plants.simulated_excavator import SimulatedExcavator
-    from plant_models.hydraulics import default_config
 
-    config = default_config(scenario.machine.preset)
-    specs = scenario.fmu_specs()
-    config = replace(config, **specs, seed=scenario.seed,
-                     communication_step_s=scenario.plant.communication_step_s,
-                     load_cell_noise_kg=scenario.plant.load_cell_noise_kg)
-    return SimulatedExcavator(config)
+    return SimulatedExcavator(scenario.sim_config())
 
 
 def open_run_log(scenario: Scenario, log_path: str | Path, overwrite: bool = False):

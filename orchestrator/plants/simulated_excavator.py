@@ -11,7 +11,9 @@ One communication step h from t_k (the reference is interpolated onto the grid t
 3. cylinder loads from gravity (links and payload) and the soil force; each servo
    (plant_models.servo; plant_models.linear_servo for a cylinder FMU known only by its linear
    model, given or identified) turns the stroke reference, the measured stroke and force into
-   a spool command; the cylinders step from t_k to t_k + h with command and load held.
+   a spool command; with a load-sensing supply (config.supply, plant_models.supply) the pump's
+   pressure and the load-sensing pressure follow from the commands and the chamber pressures
+   at t_k; the cylinders step from t_k to t_k + h with command, load and supply held.
 
 At the end of a period the load cell reads the Pile's bucket mass (plus Gaussian noise from one
 generator seeded per plant), then the Pile steps once more with `dump` high and the bucket
@@ -25,7 +27,9 @@ Measurement rows are samples at t_k (period time from 0): joints and cylinder ou
 the Pile's outputs after its step to the tip at t_k, and the inputs (u, F_ext) held from t_k.
 Signals: "<joint>.x, .v, .p_A, .p_B, .F" (cylinder outputs by role), "<joint>.u, .F_ext,
 .mass_load" (inputs),
-"pile.<output role>", "tip.y", "tip.z", "tip.bucket_angle".
+"pile.<output role>", "tip.y", "tip.z", "tip.bucket_angle"; with a load-sensing supply also
+"supply.p_pump", "supply.p_LS" (Pa) and "supply.sharing" (the flow-sharing factor, 1: the pump
+keeps up).
 """
 
 from __future__ import annotations
@@ -53,16 +57,18 @@ from plant_models.hydraulics import reflected_mass_kg
 from plant_models.linear_cylinder import LinearCylinderModel
 from plant_models.linear_servo import LinearJointServo, LinearServoDesign
 from plant_models.linkage import JOINT_NAMES
-from plant_models.model_spec import CYLINDER_OUTPUTS, PILE_OUTPUTS
+from plant_models.model_spec import CYLINDER_OUTPUTS, PILE_OUTPUTS, SUPPLY_INPUTS
 from plant_models.plant import JointReference, PeriodMeasurement
 from plant_models.servo import JointServo, ServoDesign
 from plant_models.sim_config import SimulatedExcavatorConfig
+from plant_models.supply import IDEAL_PUMP_PA
 
 _COLUMNS = (
     *(f"{j}.{n}" for j in JOINT_NAMES for n in (*CYLINDER_OUTPUTS, "u", "F_ext", "mass_load")),
     *(f"pile.{n}" for n in PILE_OUTPUTS),
     "tip.y", "tip.z", "tip.bucket_angle",
 )
+_SUPPLY_COLUMNS = ("supply.p_pump", "supply.p_LS", "supply.sharing")
 _PROFILE = re.compile(r"^h\[(\d+)\]$")
 SETTLE_MAX_S = 5.0  # s: the longest an arm is held on a period's last pose (run_period)
 SETTLE_CHUNK = 10  # communication steps held between looks at the pose
@@ -85,7 +91,8 @@ class SimulatedExcavator(ResumableState):
         self._steps = 0  # communication steps taken by the cylinders
         self._pile_time = 0.0
         self._initial_surface: tuple[np.ndarray, np.ndarray] | None = None
-        designs, linear_models, identifications = [], [], []
+        designs, linear_models, identifications, supplied = [], [], [], []
+        pump = config.supply
         for index, (joint, spec) in enumerate(zip(JOINT_NAMES, config.cylinders, strict=True)):
             description = fmu_description(joint, spec)
             ports = check_component(joint, "cylinder", spec, description)
@@ -99,6 +106,15 @@ class SimulatedExcavator(ResumableState):
             if given is None and model is not None and "mass_load" in ports:
                 # The FMU's mass is the piston's; the arm's inertia comes through mass_load.
                 model = replace(model, mass_kg=model.mass_kg + reflected[index])
+            if pump is not None:
+                lacking = [p for p in SUPPLY_INPUTS if p not in ports]
+                if lacking or model is None:
+                    what = f"the inputs {' and '.join(lacking)}" if lacking else \
+                        "our HydraulicCylinder's valve parameters (q_rated, dp_rated)"
+                    raise ValueError(f"{joint}: a load-sensing supply needs {what} of the "
+                                     f"cylinder FMU {spec.fmu!r}")
+                model = replace(model, compensated_drop_pa=pump.margin_pa)
+                supplied.append(model)
             if model is None:
                 load_mass = {ports["mass_load"]: reflected[index]} if "mass_load" in ports else None
                 design, linear, identified = linear_servo(joint, spec, stroke, config,
@@ -127,6 +143,9 @@ class SimulatedExcavator(ResumableState):
         self.linear_models: tuple[LinearCylinderModel | None, ...] = tuple(linear_models)
         self.identifications: tuple[CylinderIdentification | None, ...] = \
             tuple(identifications)
+        # (u0, u1, u2, p_A0, p_B0, ...) -> (p_pump, p_LS, sharing), None: constant supply.
+        self._supply_law = pump.law(supplied) if pump is not None else None
+        self._columns = _COLUMNS + (_SUPPLY_COLUMNS if pump is not None else ())
         pile_description = fmu_description("pile", config.pile)
         check_component("pile", "pile", config.pile, pile_description)
         self._profile_names = sorted(
@@ -166,6 +185,11 @@ class SimulatedExcavator(ResumableState):
                                           strict=True)}
         start["pile"] = {"tip_y": tip_y, "tip_z": tip_z, "bucket_angle": -angle, "dump": 0.0}
         self._master = Master(components, cfg.communication_step_s, start)
+        for joint in JOINT_NAMES:  # the constant supply until a supply law sets them
+            cylinder = self._master[joint]
+            for port, value in zip(SUPPLY_INPUTS, (IDEAL_PUMP_PA, 0.0), strict=True):
+                if port not in cylinder.missing_inputs:
+                    cylinder.inputs[cylinder.input_index[port]] = value
         self._start_pose = tuple(float(angle) for angle in pose)
         self._servos = tuple(JointServo(d) if isinstance(d, ServoDesign) else LinearJointServo(d)
                              for d in self.servo_designs)
@@ -226,7 +250,7 @@ class SimulatedExcavator(ResumableState):
             position = np.vstack([position, np.repeat(position[-1:], held, axis=0)])
             t = np.arange(len(position)) * self.config.communication_step_s
         table = np.array(rows)
-        signals = {name: table[:, i].copy() for i, name in enumerate(_COLUMNS)}
+        signals = {name: table[:, i].copy() for i, name in enumerate(self._columns)}
         for joint in JOINT_NAMES:  # an FMU without e.g. chamber pressures measured none
             for port in self._master[joint].missing_outputs:
                 del signals[f"{joint}.{port}"]
@@ -267,6 +291,7 @@ class SimulatedExcavator(ResumableState):
         kinematics, loads = self.coupling.kinematics, self.coupling.loads
         inertia = self.inertia.at_pose
         command0, command1, command2 = (s.command for s in self._servos)
+        supply = self._supply_law
         x0r, x1r, x2r = (strokes[:, j].tolist() for j in range(3))
         v0r, v1r, v2r = (rates[:, j].tolist() for j in range(3))
         a0r, a1r, a2r = (accelerations[:, j].tolist() for j in range(3))
@@ -306,9 +331,15 @@ class SimulatedExcavator(ResumableState):
                 u2 = command2(x2r[k], v2r[k], a2r[k], x2, f2)
                 append_joints((q0, q1, q2))
                 l0, l1, l2 = m00 / (r0 * r0), m11 / (r1 * r1), m22 / (r2 * r2)
-                append_row((x0, v0, pa0, pb0, f0, u0, e0, l0, x1, v1, pa1, pb1, f1, u1, e1, l1,
-                            x2, v2, pa2, pb2, f2, u2, e2, l2, mass, force_y, force_z, removed,
-                            dumped, in_pile, surface, tip_y, tip_z, angle))
+                row = (x0, v0, pa0, pb0, f0, u0, e0, l0, x1, v1, pa1, pb1, f1, u1, e1, l1,
+                       x2, v2, pa2, pb2, f2, u2, e2, l2, mass, force_y, force_z, removed,
+                       dumped, in_pile, surface, tip_y, tip_z, angle)
+                if supply is not None:
+                    p_pump, p_ls, sharing = supply(u0, u1, u2, pa0, pb0, pa1, pb1, pa2, pb2)
+                    boom_in[3] = stick_in[3] = bucket_in[3] = p_pump
+                    boom_in[4] = stick_in[4] = bucket_in[4] = p_ls
+                    row += (p_pump, p_ls, sharing)
+                append_row(row)
                 boom_in[0], boom_in[1], boom_in[2] = u0, e0, l0
                 stick_in[0], stick_in[1], stick_in[2] = u1, e1, l1
                 bucket_in[0], bucket_in[1], bucket_in[2] = u2, e2, l2

@@ -52,6 +52,7 @@ from planner.proportional import ProportionalRule
 from plant_models import presets
 from plant_models.geometry import ExcavatorGeometry
 from plant_models.model_spec import FmuSpec
+from plant_models.sim_config import SimulatedExcavatorConfig
 
 PLANT_ROLES = ("boom", "stick", "bucket", "pile")
 
@@ -136,6 +137,19 @@ class Scenario(Section):
     def fmu_specs(self) -> dict[str, FmuSpec]:
         """role (boom, stick, bucket, pile) -> FmuSpec."""
         return {role: getattr(self.plant, role).spec() for role in PLANT_ROLES}
+
+    def sim_config(self) -> SimulatedExcavatorConfig:
+        """The simulated excavator this scenario describes: the preset's configuration
+        (plant_models.hydraulics.default_config) with the scenario's FMUs, seed, step, load
+        cell and supply."""
+        from dataclasses import replace
+
+        from plant_models.hydraulics import default_config
+
+        return replace(default_config(self.machine.preset), **self.fmu_specs(), seed=self.seed,
+                       communication_step_s=self.plant.communication_step_s,
+                       load_cell_noise_kg=self.plant.load_cell_noise_kg,
+                       supply=self.plant.supply.pump())
 
     def to_dict(self) -> dict[str, Any]:
         """The resolved scenario as plain TOML-shaped data (lists, floats, strings, tables)."""

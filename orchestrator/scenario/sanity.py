@@ -99,20 +99,14 @@ def check_values(scenario: Any, source: str, check_fmus: bool,
 
 def _check_plant_builds(scenario: Any, source: str) -> None:
     """Build the simulated excavator (servo designs, no FMU instance) when every FMU is ours."""
-    from dataclasses import replace
-
     import fmus
     from orchestrator.plants.simulated_excavator import SimulatedExcavator
-    from plant_models.hydraulics import default_config
 
     specs = scenario.fmu_specs()
     if scenario.plant.kind != "sim" or any(s.fmu not in fmus.MODELS for s in specs.values()):
         return
-    config = replace(default_config(scenario.machine.preset), **specs, seed=scenario.seed,
-                     communication_step_s=scenario.plant.communication_step_s,
-                     load_cell_noise_kg=scenario.plant.load_cell_noise_kg)
     try:
-        SimulatedExcavator(config).close()
+        SimulatedExcavator(scenario.sim_config()).close()
     except ValueError as error:
         role, _, reason = str(error).partition(": ")
         if role in specs:

@@ -22,6 +22,7 @@ from planner.digging_path import PathShape
 from plant_models import presets
 from plant_models.linear_cylinder import LinearCylinderModel
 from plant_models.model_spec import FmuSpec
+from plant_models.supply import LoadSensingPump
 
 _positive = (lambda v: v > 0.0, "> 0")
 
@@ -196,10 +197,54 @@ class LogSection(Section):
     sample_rate_hz: Number | None = Field(default=None, gt=0.0)
 
 
+_LPM = 1.0e-3 / 60.0  # m^3/s per L/min
+_PUMP_FIELDS = ("max_flow_l_min", "cutoff_pa", "margin_pa")
+
+
+class SupplySection(Section):
+    """The oil supply of the three valves (plant_models.supply). kind "constant": each valve at
+    its cylinder FMU's own p_supply. "load_sensing": one load-sensing pump with flow sharing
+    for all three, its meter-in edges pressure compensated: max_flow_l_min (L/min), cutoff_pa
+    and margin_pa (Pa), defaults those of LoadSensingPump (a 20 t machine's 2 x 220 L/min, 30
+    MPa, 2.5 MPa), filled in so the run log shows them. Plant kind "sim" only."""
+
+    kind: StrictStr = "constant"
+    max_flow_l_min: Number | None = Field(default=None, gt=0.0)
+    cutoff_pa: Number | None = Field(default=None, gt=0.0)
+    margin_pa: Number | None = Field(default=None, gt=0.0)
+
+    @model_validator(mode="after")
+    def _pump(self):
+        if self.kind not in ("constant", "load_sensing"):
+            raise ValueError(f'unknown supply kind {self.kind!r}; use "constant" or '
+                             '"load_sensing"')
+        given = [f for f in _PUMP_FIELDS if getattr(self, f) is not None]
+        if self.kind == "constant":
+            if given:
+                raise ValueError(f'{given[0]} applies to kind "load_sensing" only')
+            return self
+        pump = LoadSensingPump()
+        defaults = {"max_flow_l_min": pump.max_flow_m3_s / _LPM, "cutoff_pa": pump.cutoff_pa,
+                    "margin_pa": pump.margin_pa}
+        for name, value in defaults.items():
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, value)
+        if not self.margin_pa < self.cutoff_pa:
+            raise ValueError("margin_pa must be below cutoff_pa")
+        return self
+
+    def pump(self) -> LoadSensingPump | None:
+        """The shared pump (SI), None for the constant supply."""
+        if self.kind == "constant":
+            return None
+        return LoadSensingPump(self.max_flow_l_min * _LPM, self.cutoff_pa, self.margin_pa)
+
+
 class PlantSection(Section):
     """kind "sim": the simulated excavator of the FMU tables; "lab": the lab excavator over CAN
     ([plant.lab], orchestrator.scenario.lab_section), whose emulated device uses the FMU tables
-    and communication_step_s too. max_tracking_error_deg: the largest |measured - reference|
+    and communication_step_s too. supply: the valves' oil supply (SupplySection).
+    max_tracking_error_deg: the largest |measured - reference|
     joint angle (deg) a period may reach; beyond it the campaign ends with termination "error"
     naming the joint, without reporting the period (orchestrator.campaign.loop)."""
 
@@ -211,6 +256,7 @@ class PlantSection(Section):
     stick: FmuSection
     bucket: FmuSection
     pile: FmuSection
+    supply: SupplySection = SupplySection()
     lab: LabSection | None = None
 
     @field_validator("kind")
@@ -219,6 +265,13 @@ class PlantSection(Section):
         if value not in ("sim", "lab"):
             raise ValueError(f'unknown plant kind {value!r}; use "sim" or "lab"')
         return value
+
+    @model_validator(mode="after")
+    def _supply_on_sim(self):
+        if self.kind != "sim" and self.supply.kind != "constant":
+            raise ValueError(f'supply kind {self.supply.kind!r} applies to plant kind "sim" '
+                             "only (the lab machine has its own pump)")
+        return self
 
     @model_validator(mode="before")
     @classmethod

@@ -22,7 +22,10 @@
  *     the bucket is a wall, so the face in front of it stands until it is cut and the material
  *     behind cannot run back under it. When the bucket leaves the material, the trench walls
  *     slump freely (and fill the next cut: the ground's memory).
- * After the substeps: dump > 0.5 moves the bucket content to dumped_mass.
+ * After the substeps, a bucket out of the ground (tip a cell above the surface) spills what its tilt cannot
+ * hold (held_share) onto the surface below its tip: the cell there takes it and slumping spreads
+ * it (spilled_mass counts it; it is pile material again). Then dump > 0.5 moves the bucket
+ * content to dumped_mass.
  *
  * Force: tip_force.c, in the surface frame, from the tip's path: an elastic-plastic state per
  * resistance, advanced by the step's move, so the force at the end of a step is a function of
@@ -50,6 +53,7 @@ typedef struct {
     double bucket_volume;  /* m^3 */
     double dumped_volume;  /* m^3 */
     double removed_volume; /* m^3, everything cut since the start */
+    double spilled_volume; /* m^3, everything spilled back onto the pile since the start */
     double tip_y, tip_z;   /* m, tip position at the end of the last step */
     int held;              /* cell held by the buried bucket at the last relaxation, or -1 */
     int settled;           /* the last relaxation converged: nothing to do until a change */
@@ -157,6 +161,52 @@ static double cut_into_bucket(const double *v, PileState *s, const Grid *g, doub
     return volume;
 }
 
+/* Share of the heaped capacity a bucket out of the ground holds with its opening tilted by
+ * `tilt` (rad) from facing straight up (0: carried level, pi: upside down), for material of
+ * repose angle rho of which `heap` of the capacity lies above the strike plane. A cross-section
+ * (the bucket's width carries it unchanged):
+ *  - the heap, a mound on the strike plane (length L) with flanks at repose: tilted by t < rho,
+ *    its flanks stand at rho + t uphill and rho - t downhill against the plane, area
+ *    L^2 sin(rho + t) sin(rho - t) / (2 sin 2 rho), so it keeps 1 - sin^2 t / sin^2 rho of the
+ *    level heap's L^2 tan(rho) / 4, none from t = rho;
+ *  - the struck part, a half-disc below the plane (the bucket's curved shell): it keeps all
+ *    while its free surface may stand at rho, then, tilted by p = t - rho more, the segment
+ *    below the chord from the lower lip at p to the plane: (a - sin a) / pi, a = pi - 2 p,
+ *    none from t = rho + 90 deg. */
+static double held_share(double tilt, double rho, double heap)
+{
+    const double s_t = sin(fmin(tilt, rho)), s_rho = sin(rho);
+    const double heaped = tilt < rho ? 1.0 - (s_t * s_t) / (s_rho * s_rho) : 0.0;
+    const double a = PI - 2.0 * fmin(fmax(tilt - rho, 0.0), 0.5 * PI);
+    return heap * heaped + (1.0 - heap) * (a - sin(a)) / PI;
+}
+
+/* Whether the tip is a cell length (the profile's resolution) above the surface near it: while
+ * it grazes the surface (entering, or cutting along it) the face in front holds the content. */
+static int out_of_ground(const PileState *s, const Grid *g, double y, double z)
+{
+    const int k = profile_cell(g, y);
+    return k < 0 || z > profile_top_near(&s->profile, k) + g->dy;
+}
+
+/* Spills onto the surface below the tip (y) what the bucket, out of the ground, cannot hold at
+ * its tilt; returns whether it spilled. The bucket's opening faces the tip-to-pin line turned
+ * clockwise, (sin phi, -cos phi): its tilt from up is acos(-cos phi). */
+static int spill(const double *v, PileState *s, const Grid *g, double y)
+{
+    const double tilt = acos(fmin(1.0, fmax(-1.0, -cos(v[VR_bucket_angle]))));
+    const double holds = v[VR_capacity] * held_share(tilt, v[VR_repose_angle], v[VR_heap_share]);
+    if (!(s->bucket_volume > holds)) return 0;
+    const double volume = s->bucket_volume - holds;
+    int k = profile_cell(g, y);
+    if (k < 0) k = y < g->y_min ? 0 : N_h - 1; /* beyond the grid: its end cell takes it */
+    profile_release(&s->profile);
+    s->profile.h[k] += volume / (v[VR_slice_width] * g->dy);
+    s->bucket_volume = holds;
+    s->spilled_volume += volume;
+    return 1;
+}
+
 /* Slumps the profile if anything changed since it last settled. */
 static void settle(PileState *s, double max_step, int held, int changed)
 {
@@ -178,6 +228,7 @@ static void write_outputs(double *v, PileState *s, const Grid *g, double dy, dou
     const double tip_y = v[VR_tip_y], tip_z = v[VR_tip_z];
     v[VR_bucket_mass] = density * s->bucket_volume;
     v[VR_dumped_mass] = density * s->dumped_volume;
+    v[VR_spilled_mass] = density * s->spilled_volume;
     v[VR_removed_volume] = s->removed_volume;
     v[VR_pile_mass] = density * width * profile_area(&s->profile, g);
     v[VR_surface_z_at_tip] = profile_surface_at(&s->profile, g, tip_y);
@@ -206,7 +257,7 @@ int model_initialize(double *v, void *state, const char **error)
     s->settled = 0;
     s->held = -1;
     settle(s, g.dy * tan(v[VR_repose_angle]), -1, 1);
-    s->bucket_volume = s->dumped_volume = s->removed_volume = 0.0;
+    s->bucket_volume = s->dumped_volume = s->removed_volume = s->spilled_volume = 0.0;
     s->tip_y = v[VR_tip_y];
     s->tip_z = v[VR_tip_z];
     s->mobilized.side[0] = s->mobilized.side[1] = s->mobilized.normal = 0.0;
@@ -240,6 +291,7 @@ int model_do_step(double *v, void *state, double t, double h, const char **error
         ya = yb;
         za = zb;
     }
+    if (out_of_ground(s, &g, y1, z1) && spill(v, s, &g, y1)) settle(s, max_step, -1, 1);
     if (v[VR_dump] > 0.5) {
         s->dumped_volume += s->bucket_volume;
         s->bucket_volume = 0.0;
@@ -262,7 +314,8 @@ int model_check_state(const double *v, const void *state, const char **error)
     for (int j = 0; ok && j <= PROFILE_MAX_SEGMENTS; ++j) ok = isfinite(p->seg_y[j]);
     for (int j = 0; ok && j < PROFILE_MAX_SEGMENTS; ++j) ok = isfinite(p->seg_h[j]);
     ok = ok && isfinite(s->bucket_volume) && isfinite(s->dumped_volume)
-         && isfinite(s->removed_volume) && isfinite(s->tip_y) && isfinite(s->tip_z);
+         && isfinite(s->removed_volume) && isfinite(s->spilled_volume) && isfinite(s->tip_y)
+         && isfinite(s->tip_z);
     for (int i = 0; ok && i < 2; ++i) ok = fabs(s->mobilized.side[i]) <= 1.0;
     ok = ok && fabs(s->mobilized.normal) <= 1.0;
     if (!ok) *error = "the pile state is out of range (profile indices or non-finite values)";

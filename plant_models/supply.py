@@ -1,0 +1,95 @@
+"""The oil supply the three valve sections share: a load-sensing pump with post-compensated flow
+sharing (LUDV, as on most mid-size excavators), plain data and the per-step law.
+
+Each section i has a meter-in edge of rated flow q_i at the drop dp_i (HydraulicCylinder's
+q_rated, dp_rated), opened a_i = clamp(u_i, -1, 1). Its compensator, between that edge and the
+chamber, holds the edge's outlet at the load-sensing pressure p_LS, the highest meter-in
+chamber pressure of the open sections; the pump regulates its pressure to p_LS + margin. So
+every open section sees the same drop across its meter-in edge and takes
+q_i |a_i| sqrt(drop / dp_i), whatever its own load: the operator's (here the servo's) command
+sets the flow. When the sections ask for more than the pump's flow,
+
+    demand D = sum_i q_i |a_i| sqrt(margin / dp_i)        (m^3/s at the full margin)
+    sharing s = min(1, Q_max / D),   drop = margin s^2,   p_pump = min(p_LS + drop, p_cutoff)
+
+the drop falls until the flows add up to Q_max, and every section slows by the same factor s
+(flow sharing: the arm keeps its path's direction, only slower). An LS pressure limiter holds
+p_LS at most p_cutoff - margin, so the pump never passes its cut-off p_cutoff: a section whose
+load needs more (a stalled bucket, its port relief at 35 MPa) gets only what p_cutoff drives
+into it, while the others keep their margin.
+
+The demand comes from the commands, not from the flows of the step, so the law needs no
+iteration with the cylinders: the master evaluates it once per communication step with the
+chamber pressures at its start and feeds p_pump and p_LS to every cylinder FMU (its inputs of
+the same names). A real pump's swashplate answers in 50-100 ms; holding its pressure over a
+10 ms step is well inside that.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from plant_models.cylinder_model import CylinderModel
+
+_LPM = 1.0e-3 / 60.0  # m^3/s per L/min
+# p_pump of a valve on its own constant supply: above any p_supply, so the cylinder FMU's port
+# sees p_supply (HydraulicCylinder's start value of the input).
+IDEAL_PUMP_PA = 1.0e9
+SupplyLaw = Callable[[float, float, float, float, float, float, float, float, float],
+                     tuple[float, float, float]]
+
+
+@dataclass(frozen=True)
+class LoadSensingPump:
+    """A flow- and pressure-limited load-sensing pump with flow sharing (SI units).
+
+    max_flow_m3_s: the most the pump delivers (m^3/s; 2 x 220 L/min on a 20 t machine).
+    cutoff_pa: its pressure limit (Pa; the main relief of the class, 30 MPa).
+    margin_pa: the load-sensing margin p_pump - p_LS it regulates (Pa; 2-3 MPa is usual).
+    """
+
+    max_flow_m3_s: float = 440.0 * _LPM
+    cutoff_pa: float = 30.0e6
+    margin_pa: float = 2.5e6
+
+    def __post_init__(self) -> None:
+        for name in ("max_flow_m3_s", "cutoff_pa", "margin_pa"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | float) \
+                    or not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"LoadSensingPump.{name} must be a finite number > 0, "
+                                 f"got {value!r}")
+        if not self.margin_pa < self.cutoff_pa:
+            raise ValueError("LoadSensingPump.margin_pa must be below cutoff_pa")
+
+    def law(self, models: Sequence[CylinderModel]) -> SupplyLaw:
+        """The per-step law of boom, stick and bucket (models: their rated flows and drops):
+        law(u0, u1, u2, p_A0, p_B0, p_A1, p_B1, p_A2, p_B2) -> (p_pump Pa, p_LS Pa, sharing s
+        in (0, 1]), from the spool commands u_i (clamped to [-1, 1] as the valve does) and the
+        chamber pressures (Pa) at the step's start: p_LS is the highest meter-in chamber
+        pressure of the open sections (p_A extending, p_B retracting), at most cutoff - margin
+        (the LS pressure limiter), and p_pump = p_LS + margin s^2 (see the module docstring).
+        Scalar math: it runs once per communication step."""
+        full0, full1, full2 = (
+            m.rated_flow_m3_s * math.sqrt(self.margin_pa / m.rated_pressure_drop_pa)
+            for m in models)
+        q_max, margin = self.max_flow_m3_s, self.margin_pa
+        ceiling = self.cutoff_pa - margin
+
+        def law(u0, u1, u2, pa0, pb0, pa1, pb1, pa2, pb2):
+            p_ls, demand = 0.0, 0.0
+            for u, pa, pb, full in ((u0, pa0, pb0, full0), (u1, pa1, pb1, full1),
+                                    (u2, pa2, pb2, full2)):
+                if u > 0.0:
+                    demand += full * (u if u < 1.0 else 1.0)
+                    p_ls = pa if pa > p_ls else p_ls
+                elif u < 0.0:
+                    demand -= full * (u if u > -1.0 else -1.0)
+                    p_ls = pb if pb > p_ls else p_ls
+            p_ls = p_ls if p_ls < ceiling else ceiling
+            sharing = 1.0 if demand <= q_max else q_max / demand
+            return p_ls + margin * sharing * sharing, p_ls, sharing
+
+        return law
