@@ -132,6 +132,13 @@ class FastSlave:
             raise
         self._vr = {name: v.valueReference for name, v in variables.items()}
         self._bind(inputs, outputs)
+        # The input buffer starts as the instance was initialised (a given start value, else
+        # the FMU's own), so a step before any write sets nothing new: an input left alone
+        # keeps its start value, e.g. a cylinder's p_pump.
+        given = start_values or {}
+        self.inputs[:] = [float(given[n]) if n in given else
+                          float(variables[n].start) if variables[n].start is not None else 0.0
+                          for n in inputs]
 
     def _bind(self, inputs: Sequence[str], outputs: Sequence[str]) -> None:
         """Our own function pointers into the loaded binary, without fmpy's logging wrapper and

@@ -34,9 +34,6 @@ from dataclasses import dataclass
 from plant_models.cylinder_model import CylinderModel
 
 _LPM = 1.0e-3 / 60.0  # m^3/s per L/min
-# p_pump of a valve on its own constant supply: above any p_supply, so the cylinder FMU's port
-# sees p_supply (HydraulicCylinder's start value of the input).
-IDEAL_PUMP_PA = 1.0e9
 SupplyLaw = Callable[[float, float, float, float, float, float, float, float, float],
                      tuple[float, float, float]]
 

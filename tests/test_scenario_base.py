@@ -28,6 +28,10 @@ def test_the_shipped_substitution_scenarios_differ_from_the_paper_only_in_their_
         for role in roles:
             assert data["plant"][role]["fmu"] == fmu
             data["plant"][role] = paper["plant"][role] = None
+        if fmu == "IdealActuator":  # and their supply: velocity servos share no pump
+            assert data["plant"]["supply"] == {"kind": "constant"}
+            assert paper["plant"]["supply"]["kind"] == "load_sensing"
+            data["plant"]["supply"] = paper["plant"]["supply"] = None
         assert {**data, "name": "", "description": ""} == \
             {**paper, "name": "", "description": ""}
 

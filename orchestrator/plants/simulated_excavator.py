@@ -61,7 +61,6 @@ from plant_models.model_spec import CYLINDER_OUTPUTS, PILE_OUTPUTS, SUPPLY_INPUT
 from plant_models.plant import JointReference, PeriodMeasurement
 from plant_models.servo import JointServo, ServoDesign
 from plant_models.sim_config import SimulatedExcavatorConfig
-from plant_models.supply import IDEAL_PUMP_PA
 
 _COLUMNS = (
     *(f"{j}.{n}" for j in JOINT_NAMES for n in (*CYLINDER_OUTPUTS, "u", "F_ext", "mass_load")),
@@ -185,11 +184,6 @@ class SimulatedExcavator(ResumableState):
                                           strict=True)}
         start["pile"] = {"tip_y": tip_y, "tip_z": tip_z, "bucket_angle": -angle, "dump": 0.0}
         self._master = Master(components, cfg.communication_step_s, start)
-        for joint in JOINT_NAMES:  # the constant supply until a supply law sets them
-            cylinder = self._master[joint]
-            for port, value in zip(SUPPLY_INPUTS, (IDEAL_PUMP_PA, 0.0), strict=True):
-                if port not in cylinder.missing_inputs:
-                    cylinder.inputs[cylinder.input_index[port]] = value
         self._start_pose = tuple(float(angle) for angle in pose)
         self._servos = tuple(JointServo(d) if isinstance(d, ServoDesign) else LinearJointServo(d)
                              for d in self.servo_designs)

@@ -237,18 +237,26 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (),
     """
     path = Path(path)
     source = path.name
-    text, data = _read_scenario_file(path, ())
+    text, data, given = _read_scenario_file(path, ())
     data.setdefault("name", path.stem)
     data = apply_overrides(data, overrides, source)
+    for item in overrides:  # a --set parameter counts as the file's own
+        key = item.partition("=")[0].strip().split(".")
+        if len(key) == 4 and key[0] == "plant" and key[1] in given and key[2] == "parameters":
+            given[key[1]].add(key[3])
     scenario = scenario_from_dict(data, source=source, base_dir=path.resolve().parent,
-                                  check_fmus=check_fmus)
+                                  check_fmus=check_fmus, given=given)
     scenario._source_text = text
     scenario._overrides = tuple(overrides)
     return scenario
 
 
-def _read_scenario_file(path: Path, chain: tuple[Path, ...]) -> tuple[str, dict[str, Any]]:
-    """(the file's text, its data with its `base` merged under it)."""
+def _read_scenario_file(path: Path, chain: tuple[Path, ...]
+                        ) -> tuple[str, dict[str, Any], dict[str, set[str]]]:
+    """(the file's text, its data with its `base` merged under it, role -> the FMU parameters
+    the files set for the FMU the role ends up with: a base's parameters for a role whose FMU
+    this file replaces are not counted, so resolve_fmus keeps those the new FMU declares and
+    drops the rest as it does the preset's)."""
     source = path.name if not chain else f"{chain[0].name} (base {path.name})"
     try:
         text = path.read_text(encoding="utf-8")
@@ -261,8 +269,9 @@ def _read_scenario_file(path: Path, chain: tuple[Path, ...]) -> tuple[str, dict[
     except tomllib.TOMLDecodeError as error:
         raise ScenarioError(source, "", f"not valid TOML: {error}") from None
     base = data.pop("base", None)
+    own = _given_parameters(data)
     if base is None:
-        return text, data
+        return text, data, own
     if not isinstance(base, str) or not base:
         raise ScenarioError(source, "base", f"expected a scenario file name, got {base!r}")
     base_path = (path.parent / base).resolve()
@@ -270,13 +279,24 @@ def _read_scenario_file(path: Path, chain: tuple[Path, ...]) -> tuple[str, dict[
         raise ScenarioError(source, "base", f"{base!r} is this scenario or one it is based on")
     if len(chain) >= _MAX_BASES:
         raise ScenarioError(source, "base", f"more than {_MAX_BASES} base files in a row")
-    _, below = _read_scenario_file(base_path, (*chain, path.resolve()))
+    _, below, given = _read_scenario_file(base_path, (*chain, path.resolve()))
     below.pop("name", None)
-    return text, _merge(below, data, ())
+    for role in PLANT_ROLES:
+        swapped = _role_table(data, role).get("fmu", _role_table(below, role).get("fmu")) \
+            != _role_table(below, role).get("fmu")
+        given[role] = own[role] if swapped else given[role] | own[role]
+    return text, _merge(below, data, ()), given
+
+
+def _role_table(data: Mapping[str, Any], role: str) -> Mapping[str, Any]:
+    plant = data.get("plant")
+    table = plant.get(role) if isinstance(plant, Mapping) else None
+    return table if isinstance(table, Mapping) else {}
 
 
 def scenario_from_dict(data: Mapping[str, Any], *, source: str = "scenario",
-                       base_dir: str | Path | None = None, check_fmus: bool = True) -> Scenario:
+                       base_dir: str | Path | None = None, check_fmus: bool = True,
+                       given: Mapping[str, set[str]] | None = None) -> Scenario:
     """Validate TOML-shaped data (a parsed file or `Scenario.to_dict()`) into a Scenario.
 
     Missing values take the preset's defaults; relative FMU paths resolve against base_dir
@@ -284,6 +304,8 @@ def scenario_from_dict(data: Mapping[str, Any], *, source: str = "scenario",
     and its parameters and ports are checked against its model description, and each of our
     models is asked whether it initialises with its parameters. Values that make no sense
     together or would make a run hang are refused too (orchestrator.scenario.sanity).
+    given: role -> the FMU parameters the scenario itself sets (checked strictly: each must be
+    the FMU's); default every parameter table in `data`.
     """
     if not isinstance(data, Mapping):
         raise ScenarioError(source, "", f"expected a table of settings, got {type(data).__name__}")
@@ -296,23 +318,21 @@ def scenario_from_dict(data: Mapping[str, Any], *, source: str = "scenario",
     if isinstance(adaptation, dict) and not {"centre_fractions", "centres_kg"} & set(adaptation):
         adaptation["centre_fractions"] = list(PAPER_CENTRE_FRACTIONS)
     scenario = _validate(merged, source)
+    given = dict(given) if given is not None else _given_parameters(data)
     if check_fmus:
         resolved = resolve_fmus(scenario.to_dict()["plant"], source,
-                                Path(base_dir) if base_dir is not None else Path.cwd(),
-                                _given_parameters(data))
+                                Path(base_dir) if base_dir is not None else Path.cwd(), given)
         scenario = _validate({**scenario.to_dict(), "plant": resolved}, source)
-    check_values(scenario, source, check_fmus, _given_parameters(data))
+    check_values(scenario, source, check_fmus, given)
     check_first_period(scenario, source)
     return scenario
 
 
 def _given_parameters(data: Mapping[str, Any]) -> dict[str, set[str]]:
     """role -> names of the FMU parameters the scenario itself sets (not the preset)."""
-    plant = data.get("plant")
     given: dict[str, set[str]] = {}
     for role in PLANT_ROLES:
-        table = plant.get(role) if isinstance(plant, Mapping) else None
-        parameters = table.get("parameters") if isinstance(table, Mapping) else None
+        parameters = _role_table(data, role).get("parameters")
         given[role] = set(parameters) if isinstance(parameters, Mapping) else set()
     return given
 

@@ -206,7 +206,8 @@ class SupplySection(Section):
     its cylinder FMU's own p_supply. "load_sensing": one load-sensing pump with flow sharing
     for all three, its meter-in edges pressure compensated: max_flow_l_min (L/min), cutoff_pa
     and margin_pa (Pa), defaults those of LoadSensingPump (a 20 t machine's 2 x 220 L/min, 30
-    MPa, 2.5 MPa), filled in so the run log shows them. Plant kind "sim" only."""
+    MPa, 2.5 MPa), filled in so the run log shows them (and cleared under "constant", where they
+    do not apply). Plant kind "sim" only."""
 
     kind: StrictStr = "constant"
     max_flow_l_min: Number | None = Field(default=None, gt=0.0)
@@ -218,10 +219,11 @@ class SupplySection(Section):
         if self.kind not in ("constant", "load_sensing"):
             raise ValueError(f'unknown supply kind {self.kind!r}; use "constant" or '
                              '"load_sensing"')
-        given = [f for f in _PUMP_FIELDS if getattr(self, f) is not None]
         if self.kind == "constant":
-            if given:
-                raise ValueError(f'{given[0]} applies to kind "load_sensing" only')
+            # A base's or --set's pump settings under a constant supply do not apply: cleared,
+            # so the run log shows only what the run used.
+            for name in _PUMP_FIELDS:
+                object.__setattr__(self, name, None)
             return self
         pump = LoadSensingPump()
         defaults = {"max_flow_l_min": pump.max_flow_m3_s / _LPM, "cutoff_pa": pump.cutoff_pa,
