@@ -20,9 +20,9 @@ reset period (it digs fresh ground at the default depth, so it repeats period 1'
 
 A campaign that fails (invalid parameters, runtime error) scores FAIL_SCORE = 100 instead.
 
-Committed scenario (`--score`): period 1 9.07 kg, 3 misses (periods 2, 5, 15), reset period 14
-(the reset after period 13), 13 of 18 counted periods within +-3 kg, score 3.21 (misses 3 + first
-0.02 + near 0.19); tests/test_calibration.py checks these figures.
+Committed scenario (`--score`): period 1 8.72 kg, 3 misses (periods 2, 5, 17), reset period 13
+(the reset after period 12), 14 of 18 counted periods within +-3 kg, score 3.17 (misses 3 + first
+0.00 + near 0.17); tests/test_calibration.py checks these figures.
 
 Parameters (scenario keys as for `--set`; bounds keep each value physical and the search small):
 
@@ -46,7 +46,8 @@ point (serial, --nm-maxfev campaigns, initial simplex steps of 2 % of each bound
 result is the best campaign seen, so it never scores worse than the start point. With the
 corrected plant physics, `--maxiter 6 --popsize 3 --nm-maxfev 40` (207 campaigns, 404 s on 2 busy
 cores) went from 6.26 to 4.23 (4 misses), and `--maxiter 12 --popsize 4 --nm-maxfev 80 --seed 3`
-(495 campaigns, 817 s) from there to the committed 3.21 (3 misses).
+(495 campaigns, 817 s) from there to 3.21 (3 misses). With spill by tilt and the load-sensing
+pump, the same search (495 campaigns, 859 s) went from 3.26 to the committed 3.17 (3 misses).
 Bad arguments: one line on stderr, exit 2.
 """
 

@@ -46,8 +46,9 @@ class SimulatedExcavatorConfig:
         names, gets the linear servo (plant_models.linear_servo) on that model or on the one
         identified from the FMU (orchestrator.plants.identify).
     supply: the pump the three valves share (plant_models.supply.LoadSensingPump: flow
-        sharing, compensated meter-in edges; each cylinder FMU needs the inputs p_pump and
-        p_LS); None: each valve at its own constant supply pressure p_supply.
+        sharing, compensated meter-in edges), for every cylinder FMU with the inputs p_pump and
+        p_LS (one without them runs on the supply it models itself); None: each valve at its
+        own constant supply pressure p_supply.
     """
 
     geometry: ExcavatorGeometry

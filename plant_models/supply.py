@@ -61,8 +61,9 @@ class LoadSensingPump:
         if not self.margin_pa < self.cutoff_pa:
             raise ValueError("LoadSensingPump.margin_pa must be below cutoff_pa")
 
-    def law(self, models: Sequence[CylinderModel]) -> SupplyLaw:
-        """The per-step law of boom, stick and bucket (models: their rated flows and drops):
+    def law(self, models: Sequence[CylinderModel | None]) -> SupplyLaw:
+        """The per-step law of boom, stick and bucket (models: their rated flows and drops;
+        None for a section not on this pump, whose command and pressures then never count):
         law(u0, u1, u2, p_A0, p_B0, p_A1, p_B1, p_A2, p_B2) -> (p_pump Pa, p_LS Pa, sharing s
         in (0, 1]), from the spool commands u_i (clamped to [-1, 1] as the valve does) and the
         chamber pressures (Pa) at the step's start: p_LS is the highest meter-in chamber
@@ -70,7 +71,8 @@ class LoadSensingPump:
         (the LS pressure limiter), and p_pump = p_LS + margin s^2 (see the module docstring).
         Scalar math: it runs once per communication step."""
         full0, full1, full2 = (
-            m.rated_flow_m3_s * math.sqrt(self.margin_pa / m.rated_pressure_drop_pa)
+            None if m is None else m.rated_flow_m3_s * math.sqrt(self.margin_pa
+                                                                 / m.rated_pressure_drop_pa)
             for m in models)
         q_max, margin = self.max_flow_m3_s, self.margin_pa
         ceiling = self.cutoff_pa - margin
@@ -79,6 +81,8 @@ class LoadSensingPump:
             p_ls, demand = 0.0, 0.0
             for u, pa, pb, full in ((u0, pa0, pb0, full0), (u1, pa1, pb1, full1),
                                     (u2, pa2, pb2, full2)):
+                if full is None:
+                    continue
                 if u > 0.0:
                     demand += full * (u if u < 1.0 else 1.0)
                     p_ls = pa if pa > p_ls else p_ls

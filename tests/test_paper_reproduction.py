@@ -13,10 +13,10 @@ On the `paper` machine with its 3.18 m long stick (plant_models.presets) the pla
 inside the stick's range down to z_D = -2.30 m below y = -9 m. The paper's error criterion is
 NOT met since the plant's physics was corrected (soil force in the surface frame on the whole
 bucket edge, a pose-dependent arm inertia, a slope model that agrees with the soil's
-strength): the best calibration found (700 campaigns in two searches, notes in the scenario
-file) keeps 15 of 18 periods within +-5 kg, three beyond (periods 2, 5, 15), 13 within +-3 kg.
-MAX_MISSES pins that, so a change that makes it worse fails; the paper's value is
-PAPER_MAX_MISSES.
+strength, spill by tilt, a shared load-sensing pump): the best calibration found (1,200
+campaigns in three searches, notes in the scenario file) keeps 15 of 18 periods within +-5 kg,
+three beyond (periods 2, 5, 17), 14 within +-3 kg. MAX_MISSES and MIN_WITHIN_3_KG pin that, so
+a change that makes it worse fails; the paper's value is PAPER_MAX_MISSES.
 """
 
 from pathlib import Path
@@ -32,6 +32,7 @@ TARGET_KG = 30.0  # section 3.2
 FIRST_PERIOD_KG = 8.5  # section 3.2
 PAPER_MAX_MISSES = 1  # section 3.2: "about 5 kg, but this error occurs only in one period"
 MAX_MISSES = 3  # the best calibration found with the corrected plant physics
+MIN_WITHIN_3_KG = 14  # of the 18 counted periods, in that calibration
 
 
 @pytest.fixture(scope="module")
@@ -73,7 +74,7 @@ def test_after_period_1_the_error_stays_within_5_kg_but_in_max_misses_periods(ca
     errors = [r["error_kg"] for r in campaign.records if r["k"] >= 2 and not r["reset"]]
     beyond = [e for e in errors if abs(e) > 5.0]
     assert len(beyond) <= MAX_MISSES, _figures(campaign)
-    assert sum(abs(e) <= 3.0 for e in errors) >= 13, _figures(campaign)
+    assert sum(abs(e) <= 3.0 for e in errors) >= MIN_WITHIN_3_KG, _figures(campaign)
 
 
 def _figures(campaign) -> str:

@@ -13,7 +13,8 @@ One communication step h from t_k (the reference is interpolated onto the grid t
    model, given or identified) turns the stroke reference, the measured stroke and force into
    a spool command; with a load-sensing supply (config.supply, plant_models.supply) the pump's
    pressure and the load-sensing pressure follow from the commands and the chamber pressures
-   at t_k; the cylinders step from t_k to t_k + h with command, load and supply held.
+   at t_k (a cylinder FMU without the inputs p_pump and p_LS stays off the pump, on whatever
+   supply it models itself); the cylinders step from t_k to t_k + h with command, load and supply held.
 
 At the end of a period the load cell reads the Pile's bucket mass (plus Gaussian noise from one
 generator seeded per plant), then the Pile steps once more with `dump` high and the bucket
@@ -105,15 +106,15 @@ class SimulatedExcavator(ResumableState):
             if given is None and model is not None and "mass_load" in ports:
                 # The FMU's mass is the piston's; the arm's inertia comes through mass_load.
                 model = replace(model, mass_kg=model.mass_kg + reflected[index])
-            if pump is not None:
-                lacking = [p for p in SUPPLY_INPUTS if p not in ports]
-                if lacking or model is None:
-                    what = f"the inputs {' and '.join(lacking)}" if lacking else \
-                        "our HydraulicCylinder's valve parameters (q_rated, dp_rated)"
-                    raise ValueError(f"{joint}: a load-sensing supply needs {what} of the "
-                                     f"cylinder FMU {spec.fmu!r}")
+            if pump is not None and all(p in ports for p in SUPPLY_INPUTS):
+                if model is None:
+                    raise ValueError(f"{joint}: the load-sensing supply needs the valve's rated "
+                                     f"flow: our HydraulicCylinder's parameters (q_rated, "
+                                     f"dp_rated) of the cylinder FMU {spec.fmu!r}")
                 model = replace(model, compensated_drop_pa=pump.margin_pa)
                 supplied.append(model)
+            else:  # without the supply's inputs it runs on its own supply, off the pump
+                supplied.append(None)
             if model is None:
                 load_mass = {ports["mass_load"]: reflected[index]} if "mass_load" in ports else None
                 design, linear, identified = linear_servo(joint, spec, stroke, config,

@@ -239,7 +239,11 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (),
     source = path.name
     text, data, given = _read_scenario_file(path, ())
     data.setdefault("name", path.stem)
+    named = {role: _role_table(data, role).get("fmu") for role in PLANT_ROLES}
     data = apply_overrides(data, overrides, source)
+    for role in PLANT_ROLES:  # --set swapped the FMU: the files' parameters were for another
+        if _role_table(data, role).get("fmu") != named[role]:
+            given[role] = set()
     for item in overrides:  # a --set parameter counts as the file's own
         key = item.partition("=")[0].strip().split(".")
         if len(key) == 4 and key[0] == "plant" and key[1] in given and key[2] == "parameters":
