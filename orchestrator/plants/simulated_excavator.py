@@ -14,7 +14,8 @@ One communication step h from t_k (the reference is interpolated onto the grid t
    a spool command; with a load-sensing supply (config.supply, plant_models.supply) the pump's
    pressure and the load-sensing pressure follow from the commands and the chamber pressures
    at t_k (a cylinder FMU without the inputs p_pump and p_LS stays off the pump, on whatever
-   supply it models itself); the cylinders step from t_k to t_k + h with command, load and supply held.
+   supply it models itself); the cylinders step from t_k to t_k + h with command, load and
+   supply held.
 
 At the end of a period the load cell reads the Pile's bucket mass (plus Gaussian noise from one
 generator seeded per plant), then the Pile steps once more with `dump` high and the bucket
