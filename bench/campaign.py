@@ -11,8 +11,8 @@ per step next to the ecos master stepping the same FMUs.
    in the log's share). Real-time factor = simulated time / wall time (target >= 100); logging
    share of wall time (target <= 10 %).
 2. Splits the plant's time into FMUs and master: the FMUs are stepped again, alone, through the
-   same fast path (fmus.runs.FastSlave) with the inputs the run recorded (cylinder u and F_ext,
-   the Pile's tip inputs); the rest of the plant's time is the master (kinematic coupling,
+   same fast path (fmus.runs.FastSlave) with the inputs the run recorded (cylinder u, F_ext,
+   mass_load and, on the load-sensing pump, p_pump and p_LS; the Pile's tip inputs); the rest of the plant's time is the master (kinematic coupling,
    servos, bookkeeping).
 3. Steps the same FMUs with the same inputs under the ecos master (ecospy: set_real per input,
    step, get_real per output, as fmus.runs.run_ecospy does) for comparison per step.
@@ -89,6 +89,10 @@ def recorded_inputs(scenario, measurements) -> dict[str, tuple[dict, dict]]:
         inputs = {spec.ports.get(role, role): np.concatenate(
             [m.signals[f"{joint}.{role}"] for m in measurements])
             for role in ("u", "F_ext", "mass_load")}
+        if "supply.p_pump" in measurements[0].signals:  # the load-sensing pump's, per step
+            for role in ("p_pump", "p_LS"):
+                inputs[spec.ports.get(role, role)] = np.concatenate(
+                    [m.signals[f"supply.{role}"] for m in measurements])
         x0 = float(measurements[0].signals[f"{joint}.x"][0])
         series[joint] = (inputs, {**spec.parameters, spec.ports.get("x0", "x0"): x0})
     pile = scenario.plant.pile

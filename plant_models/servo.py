@@ -251,7 +251,7 @@ class JointServo:
 
     __slots__ = ("_kp", "_kf", "_keep", "_gain", "_mass", "_filtered", "_last", "_extend",
                  "_retract", "_least", "_per_reserve_extend", "_per_reserve_retract",
-                 "_velocity_gain")
+                 "_compensated", "_metered", "_pull", "_p_tank", "_areas")
 
     def __init__(self, design: ServoDesign) -> None:
         two_over_t = 2.0 / design.step_s
@@ -274,8 +274,16 @@ class JointServo:
         q2, dp = model.rated_flow_m3_s**2, model.rated_pressure_drop_pa
         self._per_reserve_extend = q2 / (dp * (a**3 + b**3 / r2))
         self._per_reserve_retract = q2 / (dp * (a**3 / r2 + b**3))
-        # A compensated meter-in edge: the model's own law (load-independent but for a pull).
-        self._velocity_gain = model.velocity_gain if model.compensated_drop_pa > 0.0 else None
+        # A compensated meter-in edge (CylinderModel.velocity_gain): metered q sqrt(dp_c / dp)
+        # per area in, or pulled r q sqrt(pull / dp) per area out, pull = load pressure - p_T.
+        self._compensated = model.compensated_drop_pa > 0.0
+        metered = model.rated_flow_m3_s * math.sqrt(model.compensated_drop_pa
+                                                     / model.rated_pressure_drop_pa)
+        self._metered = (metered / a, metered / b)  # extending, retracting
+        pull = model.meter_out_ratio * model.rated_flow_m3_s \
+            / math.sqrt(model.rated_pressure_drop_pa)
+        self._pull = (pull / b, pull / a)
+        self._p_tank, self._areas = p_t, (a, b)
         self._filtered = 0.0
         self._last: float | None = None
 
@@ -306,8 +314,18 @@ class JointServo:
         self._filtered = filtered
         self._last = excess
         velocity = v_ref + self._kp * (x_ref - x) - self._kf * filtered
-        if self._velocity_gain is not None:
-            u = velocity / self._velocity_gain(velocity, force)
+        if self._compensated:
+            if velocity >= 0.0:
+                pulled = -force / self._areas[1] - self._p_tank
+                gain = self._metered[0]
+                if pulled > 0.0:
+                    gain = max(gain, self._pull[0] * math.sqrt(pulled))
+            else:
+                pulled = force / self._areas[0] - self._p_tank
+                gain = self._metered[1]
+                if pulled > 0.0:
+                    gain = max(gain, self._pull[1] * math.sqrt(pulled))
+            u = velocity / gain
         elif velocity >= 0.0:
             reserve = self._extend - force
             if reserve < self._least:

@@ -2,6 +2,7 @@
 physics, the runtime law against python-control's simulation of the designed controller, and
 the valve law against the HydraulicCylinder FMU's steady state."""
 
+import dataclasses
 import math
 import warnings
 
@@ -114,12 +115,16 @@ def test_runtime_law_is_the_designed_discrete_controller():
     expected = design.position_gain_1_s * (x_ref - x) \
         - design.pressure_gain_m_s_per_n * filtered
     np.testing.assert_allclose(ours, expected, rtol=1e-9, atol=1e-12)
-    # command() is velocity_command() followed by the valve law.
-    inline, separate = JointServo(design), JointServo(design)
-    for k in range(n):
-        u = inline.command(x_ref[k], 0.1, 0.5, x[k], force[k])
-        w = separate.velocity_command(x_ref[k], 0.1, 0.5, x[k], force[k])
-        assert u == pytest.approx(design.model.opening(w, force[k]), rel=1e-12, abs=1e-15)
+    # command() is velocity_command() followed by the valve law, on the constant supply and on
+    # a compensated valve with a wider return (CylinderModel.opening in both).
+    compensated = dataclasses.replace(design, model=dataclasses.replace(
+        design.model, compensated_drop_pa=2.5e6, meter_out_ratio=1.3))
+    for each in (design, compensated):
+        inline, separate = JointServo(each), JointServo(each)
+        for k in range(n):
+            u = inline.command(x_ref[k], 0.1, 0.5, x[k], force[k])
+            w = separate.velocity_command(x_ref[k], 0.1, 0.5, x[k], force[k])
+            assert u == pytest.approx(each.model.opening(w, force[k]), rel=1e-12, abs=1e-15)
 
 
 @pytest.mark.parametrize("u,load", [(0.4, 2.0e4), (0.8, -3.0e4), (-0.5, 5.0e4), (-0.3, -1e4)])
