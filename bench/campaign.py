@@ -12,8 +12,8 @@ per step next to the ecos master stepping the same FMUs.
    share of wall time (target <= 10 %).
 2. Splits the plant's time into FMUs and master: the FMUs are stepped again, alone, through the
    same fast path (fmus.runs.FastSlave) with the inputs the run recorded (cylinder u, F_ext,
-   mass_load and, on the load-sensing pump, p_pump and p_LS; the Pile's tip inputs); the rest of the plant's time is the master (kinematic coupling,
-   servos, bookkeeping).
+   mass_load and, on the load-sensing pump, p_pump and p_LS; the Pile's tip inputs); the rest
+   of the plant's time is the master (kinematic coupling, servos, the pump's law, bookkeeping).
 3. Steps the same FMUs with the same inputs under the ecos master (ecospy: set_real per input,
    step, get_real per output, as fmus.runs.run_ecospy does) for comparison per step.
 The process is pinned to one CPU so the figures do not wander between cores.
