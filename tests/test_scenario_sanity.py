@@ -30,9 +30,9 @@ PAPER = ROOT / "scenarios" / "paper-2020.toml"
 
 @pytest.mark.parametrize(("overrides", "field", "reason"), [
     (["target_mass_kg=95"], "target_mass_kg",
-     "95 kg is more than the bucket holds: density x capacity = 1600 kg/m^3 x 0.056617 m^3 = "
-     "90.59 kg"),
-    (["plant.pile.parameters.density=500"], "target_mass_kg", "= 28.31 kg"),
+     "95 kg is more than the bucket holds: density x capacity = 1600 kg/m^3 x 0.046612 m^3 = "
+     "74.58 kg"),
+    (["plant.pile.parameters.density=500"], "target_mass_kg", "= 23.31 kg"),
     (["adaptation.z_D0_m=0.05"], "adaptation.z_D0_m",
      "0.05 m is not below the ground at y_D0_m = -9 m (z = 0 m)"),
     (["plant.pile.parameters.heap_height=0.5", "plant.pile.parameters.heap_center_y=-9",
