@@ -43,12 +43,10 @@ optimum is narrow: dy_0 = 2.75 m scores one miss more than 2.8 m).
 Search: scipy differential_evolution (polish=False, the committed point in its initial
 population via x0, campaigns on --workers processes), then bounded Nelder-Mead from its best
 point (serial, --nm-maxfev campaigns, initial simplex steps of 2 % of each bound's range). The
-result is the best campaign seen, so it never scores worse than the start point. With the
-corrected plant physics, `--maxiter 6 --popsize 3 --nm-maxfev 40` (207 campaigns, 404 s on 2 busy
-cores) went from 6.26 to 4.23 (4 misses), and `--maxiter 12 --popsize 4 --nm-maxfev 80 --seed 3`
-(495 campaigns, 817 s) from there to 3.21 (3 misses). With spill by tilt and the load-sensing
-pump, the same search (495 campaigns, 859 s) went from 3.26 to the committed 3.17 (3 misses).
-Bad arguments: one line on stderr, exit 2.
+result is the best campaign seen, so it never scores worse than the start point. Searches on 2
+busy cores: `--maxiter 6 --popsize 3 --nm-maxfev 40` (207 campaigns, 404 s) 6.26 -> 4.23, then
+`--maxiter 12 --popsize 4 --nm-maxfev 80 --seed 3` (495, 817 s) -> 3.21; with spill by tilt and
+the load-sensing pump the latter (495, 859 s) 3.26 -> the committed 3.17. Bad arguments: exit 2.
 """
 
 from __future__ import annotations

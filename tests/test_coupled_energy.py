@@ -5,8 +5,8 @@ Per cylinder (fmus/HydraulicCylinder/model.c):
     E_supply + E_mass_load = E_tank + E_throttling + E_relief + E_friction + E_load
                              + E_end_stop + E_stored - E_stored(0)
 to RK4's own error (tests/test_hydraulic_cylinder_energy.py derives it). Measured over the 20
-paper periods: 1e-14 of the energy supplied per cylinder (9.2 MJ in all from the load-sensing
-pump, 89 % of it throttled, 2.9 MJ of that in the compensators; 22.7 MJ and 95.5 % on the
+paper periods: 1e-14 of the energy supplied per cylinder (9.3 MJ in all from the load-sensing
+pump, 89.3 % of it throttled, 2.9 MJ of that in the compensators; 22.7 MJ and 95.5 % on the
 constant 30 MPa supply); the bound, 1e-9 of the energy through the cylinder, leaves room for
 other CPUs' rounding and is far below any bookkeeping error (of the order of a term).
 

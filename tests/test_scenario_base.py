@@ -54,3 +54,53 @@ def test_a_circle_of_bases_is_refused(tmp_path):
     (tmp_path / "b.toml").write_text('base = "a.toml"\n')
     with pytest.raises(ScenarioError, match=r"a\.toml \(base b\.toml\): base: 'a\.toml' is"):
         load_scenario(tmp_path / "a.toml")
+
+
+def _misspelt_boom_parameter(tmp_path):
+    (tmp_path / "own.toml").write_text(
+        f'base = "{PAPER}"\n[plant.boom.parameters]\nq_ratd = 1e-3\n')
+    (tmp_path / "top.toml").write_text(
+        'base = "own.toml"\n[plant.boom]\nfmu = "HydraulicCylinder"\n')
+
+
+@pytest.mark.parametrize("file, overrides", [
+    ("own.toml", []),
+    ("own.toml", ['plant.boom.fmu="HydraulicCylinder"']),  # naming the FMU it already has
+    ("top.toml", []),
+    (PAPER, ["plant.boom.parameters.q_ratd=1e-3"]),
+    (PAPER, ["plant.boom.parameters={q_ratd=1e-3}"]),  # a --set table names it too
+    (PAPER, ["plant.boom={parameters={q_ratd=1e-3}}"]),
+])
+def test_a_misspelt_parameter_is_refused_however_it_is_given(tmp_path, file, overrides):
+    _misspelt_boom_parameter(tmp_path)
+    with pytest.raises(ScenarioError, match="plant.boom.parameters.q_ratd: HydraulicCylinder has "
+                                            "no parameter 'q_ratd' \\(closest: q_rated"):
+        load_scenario(tmp_path / file if isinstance(file, str) else file, overrides)
+
+
+def test_a_swapped_fmu_drops_the_base_files_parameters_it_lacks():
+    # The paper file rates the boom's valve (q_rated, dp_rated, meter_out_ratio); IdealActuator
+    # declares none of them, so swapping it in by --set keeps only what it declares.
+    scenario = load_scenario(PAPER, ['plant.boom.fmu="IdealActuator"',
+                                     'plant.supply.kind="constant"'])
+    assert scenario.plant.boom.parameters == {"stroke": 1.289}
+    with pytest.raises(ScenarioError, match="IdealActuator has no parameter 'q_rated'"):
+        load_scenario(PAPER, ['plant.boom.fmu="IdealActuator"', "plant.boom.parameters.q_rated=1"])
+
+
+@pytest.mark.parametrize("overrides, message", [
+    (['plant.supply.kind="pump"'], "unknown supply kind 'pump'"),
+    (["plant.supply.margin_pa=40e6"], "margin_pa must be below cutoff_pa"),
+    (["plant.supply.cutoff_pa=35e6"], "plant.boom: the pump's cut-off 35 MPa is above the "
+                                      "valve's p_supply 30 MPa"),
+    (['plant.kind="lab"'], "supply kind 'load_sensing' applies to plant kind \"sim\" only"),
+])
+def test_a_wrong_supply_is_one_line(overrides, message):
+    with pytest.raises(ScenarioError, match=message) as error:
+        load_scenario(PAPER, overrides)
+    assert "\n" not in str(error.value)
+
+
+def test_a_constant_supply_clears_the_pumps_settings():
+    data = load_scenario(PAPER, ['plant.supply.kind="constant"']).to_dict()
+    assert data["plant"]["supply"] == {"kind": "constant"}

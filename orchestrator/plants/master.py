@@ -36,6 +36,7 @@ from plant_models.model_spec import (
     OPTIONAL_PORTS,
     PILE_INPUTS,
     ROLES,
+    SUPPLY_INPUTS,
     FmuSpec,
 )
 from plant_models.port_units import PortMap, unit_conversion
@@ -103,6 +104,8 @@ def check_component(component: str, role: str, spec: FmuSpec, description) -> di
         if variable is None and port not in spec.ports and (
                 port in OPTIONAL_PORTS[role] or port in DERIVABLE_OUTPUTS[role]):
             continue  # a derivable output is checked below, once the ports are known
+        if port in SUPPLY_INPUTS and port not in spec.ports and variable.causality != "input":
+            continue  # a parameter of that name is the FMU's own supply, not the pump's port
         if variable is None:
             raise ValueError(f"{component}: role {port!r} maps to variable {name!r}, which "
                              f"{description.modelName} does not have")

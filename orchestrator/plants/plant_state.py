@@ -13,9 +13,10 @@ Carried over (orchestrator.plants.simulated_excavator):
 - the pose the FMUs were instantiated at: a restore instantiates them there, as the first
   period did, then puts each into its saved state.
 
-Not saved: the components' input buffers (the step loop writes every input before the step that
-reads it) and everything computed from the configuration (couplings, servo designs), which the
-scenario rebuilds.
+Not saved: the components' input buffers (the step loop writes every input before the step
+that reads it, but p_pump and p_LS on the constant supply: they keep their start values, which
+a restored instance starts from again) and everything computed from the configuration
+(couplings, servo designs), which the scenario rebuilds.
 
 The state is JSON-able (`resume_state`), format STATE_FORMAT::
 

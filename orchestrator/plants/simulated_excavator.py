@@ -108,12 +108,19 @@ class SimulatedExcavator(ResumableState):
                 # The FMU's mass is the piston's; the arm's inertia comes through mass_load.
                 model = replace(model, mass_kg=model.mass_kg + reflected[index])
             if pump is not None and all(p in ports for p in SUPPLY_INPUTS):
-                if model is None:
+                valve = model or model_from_fmu(description, spec.parameters)
+                if valve is None:
                     raise ValueError(f"{joint}: the load-sensing supply needs the valve's rated "
                                      f"flow: our HydraulicCylinder's parameters (q_rated, "
                                      f"dp_rated) of the cylinder FMU {spec.fmu!r}")
-                model = replace(model, compensated_drop_pa=pump.margin_pa)
-                supplied.append(model)
+                if pump.cutoff_pa > valve.supply_pressure_pa:
+                    raise ValueError(
+                        f"{joint}: the pump's cut-off {pump.cutoff_pa / 1e6:g} MPa is above the "
+                        f"valve's p_supply {valve.supply_pressure_pa / 1e6:g} MPa, the most its "
+                        "port takes: lower plant.supply.cutoff_pa or raise p_supply")
+                if model is not None:
+                    model = replace(model, compensated_drop_pa=pump.margin_pa)
+                supplied.append(valve)
             else:  # without the supply's inputs it runs on its own supply, off the pump
                 supplied.append(None)
             if model is None:

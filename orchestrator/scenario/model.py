@@ -239,15 +239,13 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (),
     source = path.name
     text, data, given = _read_scenario_file(path, ())
     data.setdefault("name", path.stem)
-    named = {role: _role_table(data, role).get("fmu") for role in PLANT_ROLES}
+    named = {role: _fmu_of(data, role) for role in PLANT_ROLES}
     data = apply_overrides(data, overrides, source)
+    by_set = _given_parameters(apply_overrides({}, overrides, source))  # in any --set form
     for role in PLANT_ROLES:  # --set swapped the FMU: the files' parameters were for another
-        if _role_table(data, role).get("fmu") != named[role]:
+        if _fmu_of(data, role) != named[role]:
             given[role] = set()
-    for item in overrides:  # a --set parameter counts as the file's own
-        key = item.partition("=")[0].strip().split(".")
-        if len(key) == 4 and key[0] == "plant" and key[1] in given and key[2] == "parameters":
-            given[key[1]].add(key[3])
+        given[role] |= by_set[role]
     scenario = scenario_from_dict(data, source=source, base_dir=path.resolve().parent,
                                   check_fmus=check_fmus, given=given)
     scenario._source_text = text
@@ -286,10 +284,16 @@ def _read_scenario_file(path: Path, chain: tuple[Path, ...]
     _, below, given = _read_scenario_file(base_path, (*chain, path.resolve()))
     below.pop("name", None)
     for role in PLANT_ROLES:
-        swapped = _role_table(data, role).get("fmu", _role_table(below, role).get("fmu")) \
-            != _role_table(below, role).get("fmu")
+        swapped = _fmu_of(_merge(below, data, ()), role) != _fmu_of(below, role)
         given[role] = own[role] if swapped else given[role] | own[role]
     return text, _merge(below, data, ()), given
+
+
+def _fmu_of(data: Mapping[str, Any], role: str) -> str:
+    """The FMU a role ends up with in `data`: its table's `fmu`, else the presets' own (both
+    presets run our HydraulicCylinder and Pile)."""
+    fmu = _role_table(data, role).get("fmu")
+    return fmu if isinstance(fmu, str) else ("Pile" if role == "pile" else "HydraulicCylinder")
 
 
 def _role_table(data: Mapping[str, Any], role: str) -> Mapping[str, Any]:
