@@ -4,6 +4,8 @@ law, the force balance and the flow balance worked out here (scipy's root finder
 pump's drop); none of the references comes from the code under test."""
 
 import math
+import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -184,3 +186,29 @@ def test_three_cylinders_on_one_pump_slow_down_together():
     for flow in inflows:  # each the same share of its full demand, 200 L/min
         assert flow == pytest.approx(0.6 * 200 * lpm, rel=0.01)
     assert cylinder["stroke"] > 0.2 + 1.5 * max(velocities)  # no cylinder reached its stop
+
+
+def test_a_cylinder_with_its_own_supply_parameter_stays_off_the_pump(tmp_path):
+    # An FMU whose p_pump is a parameter (its own supply setting), not an input: the master does
+    # not take it for the pump's port, and the cylinder runs on the supply it models.
+    folder = tmp_path / "HydraulicCylinder"
+    shutil.copytree(Path(fmus.__file__).parent / "HydraulicCylinder", folder)
+    table = folder / "variables.toml"
+    text = table.read_text()
+    start = text.index('name = "p_pump"')
+    end = text.index("[[variable]]", start)
+    entry = text[start:end].replace('causality = "input"', 'causality = "parameter"').replace(
+        'variability = "continuous"', 'variability = "fixed"')
+    table.write_text(text[:start] + entry + text[end:])
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("EXCOSIM_FMU_DIR", str(tmp_path / "fmu"))
+        path = fmus.build_model(folder)
+    spec = FmuSpec(str(path), {"p_pump": 20.0e6})
+    with Master({"boom": ("cylinder", spec)}, 0.01, {"boom": {"x0": 0.2}}) as master:
+        boom = master["boom"]
+        assert set(boom.missing_inputs) == {"p_pump"}
+        for k in range(100):
+            boom.inputs[boom.input_index["u"]] = 1.0
+            boom.step(k * 0.01, 0.01)
+        x = float(boom.outputs[0])
+    assert x > 0.25  # it extended, fed by its own 20 MPa
