@@ -64,6 +64,7 @@ from plant_models.joint_strokes import moment_arm_m, stroke_from_joint_angle
 from plant_models.linkage import JOINT_NAMES
 from plant_models.model_spec import FmuSpec
 from plant_models.sim_config import SimulatedExcavatorConfig
+from plant_models.supply import M3_S_PER_L_MIN
 
 # The paper scenario's first-period pose at D = (-9, -0.1) m (planner.digging_path,
 # paper_joint_via_points()[2]).
@@ -75,7 +76,7 @@ LAB_DESIGN_POSE_RAD: tuple[float, float, float] = (
     math.radians(10.4633846), math.radians(-44.33907499), math.radians(-37.17639685))
 _DESIGN_POSES = {"paper": DESIGN_POSE_RAD, "lab": LAB_DESIGN_POSE_RAD}
 
-_LPM = 1.0e-3 / 60.0  # m^3/s per L/min
+_LPM = M3_S_PER_L_MIN
 
 
 def _paper_cylinders() -> dict[str, dict[str, float]]:

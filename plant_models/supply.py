@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 from plant_models.cylinder_model import CylinderModel
 
-_LPM = 1.0e-3 / 60.0  # m^3/s per L/min
+M3_S_PER_L_MIN = 1.0e-3 / 60.0
 SupplyLaw = Callable[[float, float, float, float, float, float, float, float, float],
                      tuple[float, float, float]]
 
@@ -47,7 +47,7 @@ class LoadSensingPump:
     margin_pa: the load-sensing margin p_pump - p_LS it regulates (Pa; 2-3 MPa is usual).
     """
 
-    max_flow_m3_s: float = 440.0 * _LPM
+    max_flow_m3_s: float = 440.0 * M3_S_PER_L_MIN
     cutoff_pa: float = 30.0e6
     margin_pa: float = 2.5e6
 

@@ -283,10 +283,11 @@ def _read_scenario_file(path: Path, chain: tuple[Path, ...]
         raise ScenarioError(source, "base", f"more than {_MAX_BASES} base files in a row")
     _, below, given = _read_scenario_file(base_path, (*chain, path.resolve()))
     below.pop("name", None)
+    merged = _merge(below, data, ())
     for role in PLANT_ROLES:
-        swapped = _fmu_of(_merge(below, data, ()), role) != _fmu_of(below, role)
+        swapped = _fmu_of(merged, role) != _fmu_of(below, role)
         given[role] = own[role] if swapped else given[role] | own[role]
-    return text, _merge(below, data, ()), given
+    return text, merged, given
 
 
 def _fmu_of(data: Mapping[str, Any], role: str) -> str:

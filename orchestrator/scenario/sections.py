@@ -22,7 +22,7 @@ from planner.digging_path import PathShape
 from plant_models import presets
 from plant_models.linear_cylinder import LinearCylinderModel
 from plant_models.model_spec import FmuSpec
-from plant_models.supply import LoadSensingPump
+from plant_models.supply import M3_S_PER_L_MIN, LoadSensingPump
 
 _positive = (lambda v: v > 0.0, "> 0")
 
@@ -197,7 +197,7 @@ class LogSection(Section):
     sample_rate_hz: Number | None = Field(default=None, gt=0.0)
 
 
-_LPM = 1.0e-3 / 60.0  # m^3/s per L/min
+_LPM = M3_S_PER_L_MIN
 _PUMP_FIELDS = ("max_flow_l_min", "cutoff_pa", "margin_pa")
 
 
