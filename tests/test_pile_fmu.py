@@ -47,8 +47,12 @@ class Pile:
         self.fmu.instantiate()
         self.fmu.setupExperiment(startTime=0.0)
         self.fmu.enterInitializationMode()
+        integers = {v.name for v in description.modelVariables if v.type == "Integer"}
         for name, value in {**parameters, "tip_y": tip[0], "tip_z": tip[1]}.items():
-            self.fmu.setReal([self.vr[name]], [value])
+            if name in integers:
+                self.fmu.setInteger([self.vr[name]], [int(value)])
+            else:
+                self.fmu.setReal([self.vr[name]], [value])
         self.fmu.exitInitializationMode()
         self.time, self.tip = 0.0, tip
         self.dy = (self.p["y_max"] - self.p["y_min"]) / self.n_cells

@@ -33,9 +33,16 @@
  *
  * Scales: the pile tracks the material of a slice slice_width wide (every mass and volume); the
  * soil force acts on the whole cutting edge, bucket_width wide.
+ *
+ * Density: uniform by default (the paper's assumption); density_variation > 0 gives every cell
+ * its own density from a seeded field (density_field.h), and the pile then keeps books of mass
+ * beside the volumes. The soil force keeps the mean density.
  */
 #include <math.h>
 
+#include <string.h>
+
+#include "density_field.h"
 #include "model.h"
 #include "profile.h"
 #include "pile_resistance.h"
@@ -58,6 +65,8 @@ typedef struct {
     int held;              /* cell held by the buried bucket at the last relaxation, or -1 */
     int settled;           /* the last relaxation converged: nothing to do until a change */
     Mobilization mobilized; /* how far the soil's resistances are mobilised (tip_force.h) */
+    int varied;            /* density_variation > 0: the masses are in `mass` */
+    MassBook mass;         /* kg, per cell and in the bucket (only when varied) */
 } PileState;
 
 const size_t model_state_size = sizeof(PileState);
@@ -83,6 +92,12 @@ static const char *check_parameters(const double *v)
      * (iron ore); beyond the bound a bucket load outweighs the arm it hangs from. */
     if (!(v[VR_density] >= 100.0 && v[VR_density] <= 10000.0))
         return "density must lie in [100, 10000] kg/m3 (a bulk density of soil or rock)";
+    if (!(v[VR_density_variation] >= 0.0 && v[VR_density_variation] <= 0.5))
+        return "density_variation must lie in [0, 0.5] (a relative deviation of the density)";
+    if (!(v[VR_density_correlation_length] >= 0.05 && v[VR_density_correlation_length] <= 1e3))
+        return "density_correlation_length must lie in [0.05, 1000] m";
+    if (!(v[VR_density_seed] >= 0.0 && v[VR_density_seed] == floor(v[VR_density_seed])))
+        return "density_seed must be an integer >= 0";
     if (!(v[VR_slice_width] > 0.0 && isfinite(v[VR_slice_width])))
         return "slice_width must be > 0 m";
     if (!(v[VR_bucket_width] > 0.0 && isfinite(v[VR_bucket_width])))
@@ -155,7 +170,10 @@ static double cut_into_bucket(const double *v, PileState *s, const Grid *g, doub
         }
         lift = high;
     }
+    double before[N_h];
+    if (s->varied) memcpy(before, s->profile.h, sizeof before);
     const double volume = width * profile_sweep(&s->profile, g, ya, za, yb, zb, lift);
+    if (s->varied) mass_book_cut(&s->mass, before, &s->profile, g);
     s->bucket_volume += volume;
     s->removed_volume += volume;
     return volume;
@@ -201,6 +219,7 @@ static int spill(const double *v, PileState *s, const Grid *g, double y)
     int k = profile_cell(g, y);
     if (k < 0) k = y < g->y_min ? 0 : N_h - 1; /* beyond the grid: its end cell takes it */
     profile_release(&s->profile);
+    if (s->varied) mass_book_spill(&s->mass, k, volume, s->bucket_volume);
     s->profile.h[k] += volume / (v[VR_slice_width] * g->dy);
     s->bucket_volume = holds;
     s->spilled_volume += volume;
@@ -208,10 +227,13 @@ static int spill(const double *v, PileState *s, const Grid *g, double y)
 }
 
 /* Slumps the profile if anything changed since it last settled. */
-static void settle(PileState *s, double max_step, int held, int changed)
+static void settle(PileState *s, const Grid *g, double max_step, int held, int changed)
 {
     if (!changed && held == s->held && s->settled) return;
+    double before[N_h];
+    if (s->varied) memcpy(before, s->profile.h, sizeof before);
     s->settled = profile_relax(&s->profile, max_step, held, RELAX_MAX_SWEEPS) < RELAX_MAX_SWEEPS;
+    if (s->varied) mass_book_relax(&s->mass, before, &s->profile, g);
     s->held = held;
 }
 
@@ -226,11 +248,18 @@ static void write_outputs(double *v, PileState *s, const Grid *g, double dy, dou
 {
     const double density = v[VR_density], width = v[VR_slice_width];
     const double tip_y = v[VR_tip_y], tip_z = v[VR_tip_z];
-    v[VR_bucket_mass] = density * s->bucket_volume;
-    v[VR_dumped_mass] = density * s->dumped_volume;
-    v[VR_spilled_mass] = density * s->spilled_volume;
+    if (s->varied) {
+        v[VR_bucket_mass] = s->mass.bucket;
+        v[VR_dumped_mass] = s->mass.dumped;
+        v[VR_spilled_mass] = s->mass.spilled;
+        v[VR_pile_mass] = mass_book_pile(&s->mass);
+    } else {
+        v[VR_bucket_mass] = density * s->bucket_volume;
+        v[VR_dumped_mass] = density * s->dumped_volume;
+        v[VR_spilled_mass] = density * s->spilled_volume;
+        v[VR_pile_mass] = density * width * profile_area(&s->profile, g);
+    }
     v[VR_removed_volume] = s->removed_volume;
-    v[VR_pile_mass] = density * width * profile_area(&s->profile, g);
     v[VR_surface_z_at_tip] = profile_surface_at(&s->profile, g, tip_y);
     for (int i = 0; i < N_h; ++i) v[VR_h_1 + i] = s->profile.h[i];
     const int full = s->bucket_volume >= FULL_FRACTION * v[VR_capacity];
@@ -256,7 +285,13 @@ int model_initialize(double *v, void *state, const char **error)
     /* A heap steeper than the repose angle settles before the first step. */
     s->settled = 0;
     s->held = -1;
-    settle(s, g.dy * tan(v[VR_repose_angle]), -1, 1);
+    s->varied = 0; /* the initial heap settles before the field is laid on it */
+    settle(s, &g, g.dy * tan(v[VR_repose_angle]), -1, 1);
+    s->varied = v[VR_density_variation] > 0.0;
+    if (s->varied)
+        mass_book_init(&s->mass, &s->profile, &g, v[VR_density], v[VR_density_variation],
+                       v[VR_density_correlation_length],
+                       (unsigned long long)v[VR_density_seed], v[VR_slice_width]);
     s->bucket_volume = s->dumped_volume = s->removed_volume = s->spilled_volume = 0.0;
     s->tip_y = v[VR_tip_y];
     s->tip_z = v[VR_tip_z];
@@ -287,14 +322,16 @@ int model_do_step(double *v, void *state, double t, double h, const char **error
         const double f = (double)k / n;
         const double yb = k == n ? y1 : y0 + f * (y1 - y0), zb = k == n ? z1 : z0 + f * (z1 - z0);
         const double cut = cut_into_bucket(v, s, &g, ya, za, yb, zb);
-        settle(s, max_step, held_cell(s, &g, yb, zb), cut > 0.0);
+        settle(s, &g, max_step, held_cell(s, &g, yb, zb), cut > 0.0);
         ya = yb;
         za = zb;
     }
-    if (out_of_ground(s, &g, y1, z1) && spill(v, s, &g, y1)) settle(s, max_step, -1, 1);
+    if (out_of_ground(s, &g, y1, z1) && spill(v, s, &g, y1)) settle(s, &g, max_step, -1, 1);
     if (v[VR_dump] > 0.5) {
         s->dumped_volume += s->bucket_volume;
         s->bucket_volume = 0.0;
+        s->mass.dumped += s->mass.bucket;
+        s->mass.bucket = 0.0;
     }
     s->tip_y = y1;
     s->tip_z = z1;
@@ -315,7 +352,9 @@ int model_check_state(const double *v, const void *state, const char **error)
     for (int j = 0; ok && j < PROFILE_MAX_SEGMENTS; ++j) ok = isfinite(p->seg_h[j]);
     ok = ok && isfinite(s->bucket_volume) && isfinite(s->dumped_volume)
          && isfinite(s->removed_volume) && isfinite(s->spilled_volume) && isfinite(s->tip_y)
-         && isfinite(s->tip_z);
+         && isfinite(s->tip_z) && (s->varied == 0 || s->varied == 1);
+    for (int i = 0; ok && s->varied && i < N_h; ++i) ok = isfinite(s->mass.cell[i]);
+    ok = ok && isfinite(s->mass.bucket) && isfinite(s->mass.dumped) && isfinite(s->mass.spilled);
     for (int i = 0; ok && i < 2; ++i) ok = fabs(s->mobilized.side[i]) <= 1.0;
     ok = ok && fabs(s->mobilized.normal) <= 1.0;
     if (!ok) *error = "the pile state is out of range (profile indices or non-finite values)";
