@@ -116,6 +116,10 @@ class Decision:
         eps_m: the rule's correction eps(dm) (m), reported even when a reset discards it;
             None for the first period (no weighing yet).
         dm_kg: the weight error m* - m (kg) that drove the step; None for the first period.
+        predicted_mass_kg: the mass the next period is predicted to dig (kg), from a strategy
+            that predicts it (planner.terrain); None otherwise.
+        mass_per_area_kg_m2, mass_per_area_sigma_kg_m2: that strategy's estimate of the
+            material's mass per swept area and its standard deviation (kg/m^2); None otherwise.
     """
 
     next_state: AdaptationState | None
@@ -124,6 +128,9 @@ class Decision:
     reason: str | None
     eps_m: float | None = None
     dm_kg: float | None = None
+    predicted_mass_kg: float | None = None
+    mass_per_area_kg_m2: float | None = None
+    mass_per_area_sigma_kg_m2: float | None = None
 
 
 def initial_state(defaults: AdaptationDefaults, reachable: Reachable) -> Decision:
@@ -174,6 +181,36 @@ def next_deepest_point(
     dz = state.dz + eps_m
     candidate = replace(state, z_D=state.z_D - dz, dz=dz, k=state.k + 1)
     return _place(candidate, defaults, reachable, eps_m=eps_m, dm_kg=dm_kg)
+
+
+class RuleAdaptation:
+    """Eq. 5 driven by a rule, as a strategy object: `initial()`, then `after(...)` per period
+    (the interface planner.terrain.TerrainAdaptation shares). rule: eps_m = rule(dm_kg);
+    target_mass_kg: m* (kg); reachable: as for next_deepest_point."""
+
+    def __init__(self, rule: Rule, defaults: AdaptationDefaults, target_mass_kg: float,
+                 reachable: Reachable) -> None:
+        self.rule, self.defaults, self.reachable = rule, defaults, reachable
+        self.target_mass_kg = target_mass_kg
+
+    def initial(self) -> Decision:
+        return initial_state(self.defaults, self.reachable)
+
+    def after(self, state: AdaptationState, weighed_mass_kg: float,
+              joints_rad: object = None) -> Decision:
+        """next_deepest_point from the weighed mass (kg); the rule needs no joint angles."""
+        return self.decide(state, weighed_mass_kg)
+
+    def learn(self, weighed_mass_kg: float, joints_rad: object) -> None:
+        """Nothing: eq. 5 holds all it knows in the AdaptationState."""
+
+    def decide(self, state: AdaptationState, weighed_mass_kg: float) -> Decision:
+        return next_deepest_point(state, weighed_mass_kg, self.target_mass_kg, self.rule,
+                                  self.defaults, self.reachable)
+
+    def snapshot(self) -> None:
+        """None: nothing beyond the AdaptationState to keep for a resume."""
+        return None
 
 
 def _place(

@@ -2,9 +2,10 @@
 
 For k = 1..periods (paper section 2.3, Fig. 5, Fig. 4's loop):
 
-1. the adaptation (planner.adaptation) decides D: period 1 from `initial_state`, later ones by
-   `next_deepest_point` from the last weighed mass; a terminated decision ends the campaign
-   with termination "workspace_limit", a normal outcome;
+1. the adaptation strategy (orchestrator.campaign.strategy) decides D: period 1 at D0, later
+   ones from the last weighing (the paper's rule, planner.adaptation, from the weighed mass;
+   the terrain strategy, planner.terrain, also from the executed joint angles); a terminated
+   decision ends the campaign with termination "workspace_limit", a normal outcome;
 2. the path's joint via-points around D (planner.digging_path) are timed by the time-jerk
    optimal B-spline (planner.trajectory) under the scenario's limits and weights; a D whose
    via-points or spline leave the arm's joint ranges is out of reach for the adaptation
@@ -33,7 +34,8 @@ from orchestrator.campaign.record import period_record, records_dataframe
 from orchestrator.campaign.resume_state import resume_record
 from orchestrator.campaign.watchdog import StepWatchdog
 from orchestrator.scenario.model import Scenario, load_scenario
-from planner.adaptation import AdaptationState, Decision, initial_state, next_deepest_point
+from orchestrator.campaign.strategy import adaptation_strategy
+from planner.adaptation import AdaptationState, Decision
 from planner.trajectory import JointTrajectory
 from plant_models.geometry import Unreachable
 from plant_models.plant import (
@@ -156,13 +158,15 @@ def run_campaign(
 class Start:
     """Where a campaign starts: at period 1 (the default), or after period k of a logged run
     (orchestrator.campaign.resume) with its records, the next period's start time t0_s (s),
-    the adaptation state period k dug with and the mass weighed after it (kg)."""
+    the adaptation state period k dug with, the mass weighed after it (kg) and what the
+    strategy had learnt by then (its `snapshot()`, None for the rule strategies)."""
 
     k: int = 0
     records: tuple[dict[str, Any], ...] = ()
     t0_s: float = 0.0
     state: AdaptationState | None = None
     weighed_mass_kg: float = math.nan
+    strategy: dict[str, Any] | None = None
 
 
 def run_opened(scenario: Scenario, log, plant: Plant | None, start: Start,
@@ -205,13 +209,14 @@ def run_opened(scenario: Scenario, log, plant: Plant | None, start: Start,
 def _dig(scenario: Scenario, plant: Plant, log, records: list,
          progress: Callable[[dict[str, Any]], None] | None, start: Start) -> tuple[str, str]:
     planner = scenario.period_planner()
-    rule, defaults = scenario.adaptation_rule(), scenario.adaptation_defaults()
+    adaptation = adaptation_strategy(scenario, planner)
     step_s = float(getattr(plant, "communication_step_s", scenario.plant.communication_step_s))
     if start.state is None:
-        decision: Decision = initial_state(defaults, planner.reachable)
+        decision: Decision = adaptation.initial()
     elif start.k < scenario.periods:  # what the run decided after period k, decided again
-        decision = next_deepest_point(start.state, start.weighed_mass_kg,
-                                      scenario.target_mass_kg, rule, defaults, planner.reachable)
+        if start.strategy is not None:
+            adaptation.restore(start.strategy)
+        decision = adaptation.decide(start.state, start.weighed_mass_kg)
     t0_s = start.t0_s
     for k in range(start.k + 1, scenario.periods + 1):
         if decision.terminated:
@@ -234,12 +239,14 @@ def _dig(scenario: Scenario, plant: Plant, log, records: list,
             raise
         record = period_record(state, decision, trajectory, measurement,
                                scenario.target_mass_kg, t0_s)
+        if k < scenario.periods:  # before the resume record, which keeps what it learnt
+            adaptation.learn(measurement.weighed_mass_kg, measurement.joints_rad)
         if log is not None:
             surface = initial_pile_surface(plant) if k == 1 else None
             if surface is not None:  # so that viewers draw the pile from t = 0
                 log.log_pile_surface(*surface, t_s=0.0)
             saved = resume_record(plant, state, measurement.weighed_mass_kg,
-                                  t0_s + float(measurement.t_s[-1]))
+                                  t0_s + float(measurement.t_s[-1]), adaptation.snapshot())
             # Without a state (a plant that cannot save one), the call of a log without them.
             log.log_period(record, measurement, t0_s,
                            **({} if saved is None else {"resume_state": saved}))
@@ -248,9 +255,7 @@ def _dig(scenario: Scenario, plant: Plant, log, records: list,
             progress(record)
         t0_s += float(measurement.t_s[-1])
         if k < scenario.periods:
-            decision = next_deepest_point(state, measurement.weighed_mass_kg,
-                                          scenario.target_mass_kg, rule, defaults,
-                                          planner.reachable)
+            decision = adaptation.decide(state, measurement.weighed_mass_kg)
     return "periods", f"{scenario.periods} period(s) dug"
 
 

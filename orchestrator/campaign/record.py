@@ -13,6 +13,10 @@ Keys (angles in the record's own units, per-joint lists in the order boom, stick
                                (absent in period 1: no weighing came before it); Fig. 5's flag;
                                True when D came from the reset-and-shift
     mass_kg, error_kg          weighed mass m_k (kg); error m* - m_k (kg)
+    predicted_mass_kg          the mass the strategy predicted for the period (kg); with
+    mass_per_area_kg_m2,       its estimate of the mass per swept area and that estimate's
+    mass_per_area_sigma_kg_m2  standard deviation (kg/m^2) when it chose D (planner.terrain
+                               only; absent for the rule strategies and in period 1)
     duration_s                 duration of the period's trajectory (s)
     max_abs_velocity_deg_s, max_abs_acceleration_deg_s2, max_abs_jerk_deg_s3
                                exact peaks of the planned spline per joint
@@ -38,6 +42,7 @@ from planner.adaptation import AdaptationState, Decision
 from planner.trajectory import JointTrajectory
 from plant_models.plant import JOINTS, PeriodMeasurement
 
+ESTIMATE_KEYS = ("predicted_mass_kg", "mass_per_area_kg_m2", "mass_per_area_sigma_kg_m2")
 PER_JOINT = ("max_abs_velocity_deg_s", "max_abs_acceleration_deg_s2", "max_abs_jerk_deg_s3",
              "tracking_rms_deg")
 
@@ -75,6 +80,10 @@ def period_record(state: AdaptationState, decision: Decision, trajectory: JointT
         record["lowest_tip_m"] = [float(tip_y[lowest]), float(tip_z[lowest])]
     if decision.eps_m is None:  # a JSON null has no type the viewers' schema readers take
         del record["eps_m"]
+    for key in ESTIMATE_KEYS:
+        value = getattr(decision, key)
+        if value is not None:
+            record[key] = float(value)
     return record
 
 
@@ -107,20 +116,23 @@ def _degrees(values_rad) -> list[float]:
 
 def records_dataframe(records: list[dict[str, Any]]):
     """pandas DataFrame of records, index k: scalars as they are, D as y_D_m and z_D_m, per-joint
-    lists as <name>_<joint>; via-points, segment durations and the spline are left out."""
+    lists as <name>_<joint>; the strategy's estimates (ESTIMATE_KEYS) when a record has them;
+    via-points, segment durations and the spline are left out."""
     import pandas as pd
 
+    # The terrain strategy's estimates, in the frame of a run that has them only.
+    estimates = [key for key in ESTIMATE_KEYS if any(key in record for record in records)]
     rows = []
     for record in records:
         row = {key: record.get(key) for key in ("k", "t0_s", "mass_kg", "error_kg", "reset",
                                                 "flag", "dz_m", "eps_m", "duration_s",
-                                                "planner_ms")}
+                                                "planner_ms", *ESTIMATE_KEYS)}
         row["y_D_m"], row["z_D_m"] = record["deepest_point_m"]
         for key in PER_JOINT:
             for joint, value in zip(JOINTS, record[key], strict=True):
                 row[f"{key}_{joint}"] = value
         rows.append(row)
     columns = ["k", "t0_s", "y_D_m", "z_D_m", "dz_m", "eps_m", "flag", "reset", "mass_kg",
-               "error_kg", "duration_s", "planner_ms",
+               "error_kg", *estimates, "duration_s", "planner_ms",
                *(f"{key}_{joint}" for key in PER_JOINT for joint in JOINTS)]
     return pd.DataFrame(rows, columns=columns).set_index("k")

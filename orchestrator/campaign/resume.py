@@ -125,11 +125,29 @@ def _prepare(path: Path, run: RunFile, data: bytes) -> ResumeSource:
         raise ResumeRefused(f"{path} holds {k} periods, more than its scenario's "
                             f"{scenario.periods}")
     _check_fmus(path, run, scenario)
+    _check_strategy(path, scenario, record, k)
     try:
         prefix = continuation_prefix(data, run.period_chunks[k - 1])
     except (ValueError, IndexError) as error:
         raise ResumeRefused(f"{path}: period {k}'s chunk: {error}") from None
     return ResumeSource(path, run, scenario, k, record, prefix)
+
+
+def _check_strategy(path: Path, scenario, record: dict[str, Any], k: int) -> None:
+    """A strategy that learns (terrain) needs what it had learnt, and it must fit."""
+    from orchestrator.campaign.strategy import adaptation_strategy
+
+    strategy = adaptation_strategy(scenario, scenario.period_planner())
+    if strategy.snapshot() is None:  # a rule strategy: nothing to restore
+        return
+    if record["strategy"] is None:
+        raise ResumeRefused(f"{path}: the resume state after period {k} lacks the "
+                            f"{scenario.adaptation.strategy} strategy's estimate: it cannot "
+                            "be resumed")
+    try:
+        strategy.restore(record["strategy"])
+    except ValueError as error:
+        raise ResumeRefused(f"{path}: the resume state after period {k}: {error}") from None
 
 
 def _read(path: Path) -> tuple[RunFile, bytes, Any]:
@@ -245,6 +263,7 @@ def _continue(source: ResumeSource, output: str | Path | None, overwrite: bool,
         plant.close()
         raise
     start = Start(k=k, records=tuple(source.records), t0_s=record["t0_next_s"],
-                  state=record["adaptation"], weighed_mass_kg=record["weighed_mass_kg"])
+                  state=record["adaptation"], weighed_mass_kg=record["weighed_mass_kg"],
+                  strategy=record["strategy"])
     return log, plant, start
 

@@ -6,7 +6,9 @@ Besides the plant's own state (orchestrator.plants.plant_state), the campaign ca
 things from one period to the next (orchestrator.campaign.loop): the adaptation state the
 period dug with and the mass weighed after it, from which the next period's D is decided (a pure
 function: the resumed run decides it again, exactly), and the campaign time at which the next
-period starts. The planner holds nothing across periods but a cache of its plans.
+period starts. The rule strategies hold nothing else across periods (the planner only a cache of
+its plans); the terrain strategy (planner.terrain) also its surface estimate and its mass per
+area, kept as "strategy" (its `snapshot()`, taken once it has learnt from the period).
 """
 
 from __future__ import annotations
@@ -22,10 +24,12 @@ RESUME_FORMAT = 1
 
 
 def resume_record(plant: Any, state: AdaptationState, weighed_mass_kg: float,
-                  t0_next_s: float) -> dict[str, Any] | None:
+                  t0_next_s: float, strategy: dict[str, Any] | None = None
+                  ) -> dict[str, Any] | None:
     """The resume record after the period `state.k` (weighed_mass_kg: its weighing, kg;
-    t0_next_s: the next period's start, s); None for a plant that cannot save its state (the
-    lab excavator, an FMU without state serialization)."""
+    t0_next_s: the next period's start, s; strategy: what the adaptation strategy learnt, JSON
+    data, or None); None for a plant that cannot save its state (the lab excavator, an FMU
+    without state serialization)."""
     capture = getattr(plant, "resume_state", None)
     try:
         saved = capture() if capture is not None else None
@@ -33,9 +37,12 @@ def resume_record(plant: Any, state: AdaptationState, weighed_mass_kg: float,
         saved = None
     if saved is None:
         return None
-    return {"format": RESUME_FORMAT, "k": state.k, "t0_next_s": float(t0_next_s),
-            "adaptation": dataclasses.asdict(state),
-            "weighed_mass_kg": float(weighed_mass_kg), "plant": saved}
+    record = {"format": RESUME_FORMAT, "k": state.k, "t0_next_s": float(t0_next_s),
+              "adaptation": dataclasses.asdict(state),
+              "weighed_mass_kg": float(weighed_mass_kg), "plant": saved}
+    if strategy is not None:
+        record["strategy"] = strategy
+    return record
 
 
 def parse_resume_record(data: bytes, k: int) -> dict[str, Any]:
@@ -67,4 +74,6 @@ def parse_resume_record(data: bytes, k: int) -> dict[str, Any]:
         raise ValueError(f"its adaptation state is period {record['adaptation'].k}'s, not {k}'s")
     if not isinstance(record.get("plant"), dict):
         raise ValueError("field 'plant' is not an object")
+    if not isinstance(record.setdefault("strategy", None), (dict, type(None))):
+        raise ValueError("field 'strategy' is not an object")
     return record

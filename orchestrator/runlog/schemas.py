@@ -176,6 +176,11 @@ PERIOD_SUMMARY_SCHEMA: dict = {
         "reset": {"type": "boolean", "description": "D was reset (workspace limit)"},
         "mass_kg": _number("weighed mass, kg"),
         "error_kg": _number("target minus weighed mass, kg"),
+        "predicted_mass_kg": _number("mass the strategy predicted for the period, kg (terrain "
+                                     "strategy only; absent in period 1)"),
+        "mass_per_area_kg_m2": _number("strategy's estimate of the mass per swept area it "
+                                       "dug with, kg/m^2 (terrain strategy only)"),
+        "mass_per_area_sigma_kg_m2": _number("standard deviation of that estimate, kg/m^2"),
         "duration_s": _number("period duration, s"),
         "max_abs_velocity_deg_s": _triple("deg/s"),
         "max_abs_acceleration_deg_s2": _triple("deg/s^2"),
@@ -221,6 +226,13 @@ RESUME_STATE_SCHEMA: dict = {"title": "excosim.ResumeState", **_object(
         }),
         "weighed_mass_kg": _number("the load cell's reading after period k, kg (the next "
                                    "period's D follows from it)"),
+        "strategy": _object("what the terrain strategy learnt up to period k (absent for the "
+                            "rule strategies)", {
+            "surface_z_m": {"type": "array", "items": {"type": "number"},
+                            "description": "the planner's surface estimate at its cells, m"},
+            "mass_per_area_kg_m2": _number("estimated mass per swept area, kg/m^2"),
+            "variance_kg2_m4": _number("variance of that estimate, kg^2/m^4"),
+        }),
         "plant": _object("the simulated plant's state (orchestrator.plants.plant_state)", {
             "format": {"type": "integer", "description": "layout of the plant state (1)"},
             "fmus": _object("component -> its FMU's serialized state, base64", {

@@ -88,11 +88,15 @@ class AdaptationSection(Section):
 
     strategy: what turns the weight error into eq. 5's correction eps: "fuzzy" (the paper's
     rule), "proportional" (eps = gain_m_per_kg * dm, planner.proportional; without a gain, the
-    secant through the fuzzy rule's vpb term) or "fixed" (no correction and dz_0 = 0: every
-    period digs the same trajectory through D0, the baseline without adaptation)."""
+    secant through the fuzzy rule's vpb term), "fixed" (no correction and dz_0 = 0: every
+    period digs the same trajectory through D0, the baseline without adaptation) or "terrain"
+    (beyond the paper: z_D from the mass predicted on the planner's own surface estimate,
+    planner.terrain; it needs assumed_repose_angle_deg, the angle in (0, 90) deg the planner
+    assumes trench walls slump to, and ignores the rule's terms)."""
 
-    strategy: Literal["fuzzy", "proportional", "fixed"] = "fuzzy"
+    strategy: Literal["fuzzy", "proportional", "fixed", "terrain"] = "fuzzy"
     gain_m_per_kg: Number | None = Field(default=None, ge=0.0)
+    assumed_repose_angle_deg: Number | None = Field(default=None, gt=0.0, lt=90.0)
     y_D0_m: Number
     z_D0_m: Number
     dz_0_m: Number
@@ -114,6 +118,9 @@ class AdaptationSection(Section):
     def _one_partition(self) -> AdaptationSection:
         if (self.centre_fractions is None) == (self.centres_kg is None):
             raise ValueError("give either centre_fractions or centres_kg (exactly one)")
+        if self.strategy == "terrain" and self.assumed_repose_angle_deg is None:
+            raise ValueError("strategy \"terrain\" needs assumed_repose_angle_deg (the angle "
+                             "of repose the planner assumes, deg)")
         return self
 
 
