@@ -84,12 +84,21 @@ class ReposeBank:
             return None
         return float(self.weights @ np.array(masses))
 
-    def most_likely_mass_kg(self, tip_y_m: np.ndarray, tip_z_m: np.ndarray) -> float | None:
-        """The mass (kg) the most likely hypothesis predicts for the tip path (None before a
-        weighing): where the angle decides the ground (an old trench's slopes), the mixture
-        of surfaces slumped at different angles describes no ground at all."""
-        h = self.hypotheses[int(np.argmax(self.weights))]
-        return h.estimate.predict_mass_kg(h.surface.swept_area(tip_y_m, tip_z_m))
+    def cautious_mass_kg(self, tip_y_m: np.ndarray, tip_z_m: np.ndarray,
+                         min_weight: float) -> float | None:
+        """The largest mass (kg) a hypothesis of weight >= min_weight predicts for the tip path
+        (None before a weighing). Where the angle decides the ground (an old trench's slopes
+        under a new path) the mixture of surfaces slumped at different angles describes no
+        ground at all; the plausible hypothesis that predicts most digs least deep."""
+        masses = [h.estimate.predict_mass_kg(h.surface.swept_area(tip_y_m, tip_z_m))
+                  for h, w in zip(self.hypotheses, self.weights, strict=True)
+                  if w >= min_weight]
+        if not masses:  # min_weight above every weight: the most likely one
+            h = self.hypotheses[int(np.argmax(self.weights))]
+            masses = [h.estimate.predict_mass_kg(h.surface.swept_area(tip_y_m, tip_z_m))]
+        if any(m is None for m in masses):
+            return None
+        return float(max(masses))
 
     def learn(self, mass_kg: float, tip_y_m: np.ndarray, tip_z_m: np.ndarray,
               noise_sigma_kg: float, model_share: float, drift_share: float) -> None:

@@ -52,6 +52,8 @@ REACH_BISECTIONS = 6
 REPOSE_OFFSETS_DEG = (-12.0, -8.0, -4.0, 0.0, 4.0, 8.0, 12.0)
 """The repose hypotheses around the assumed angle (deg): a told angle may be some degrees off."""
 REPOSE_PRIOR_SIGMA_DEG = 6.0
+PLAUSIBLE_WEIGHT = 0.2
+"""Weight from which a repose hypothesis is plausible for the first cut after the shift."""
 
 
 @dataclass(frozen=True)
@@ -209,11 +211,11 @@ class TerrainAdaptation:
 
     def _mass(self, y_D: float, z_D: float) -> float | None:
         """The predicted mass (kg) through D, or None out of reach (the search's measure); in
-        the first period after the shift, the most likely repose hypothesis's."""
+        the first period after the shift, the most any plausible repose hypothesis predicts."""
         if not self._cautious:
             return self.predicted_mass_kg(y_D, z_D)
         path = self._tip_path(y_D, z_D)
-        return None if path is None else self.bank.most_likely_mass_kg(*path)
+        return None if path is None else self.bank.cautious_mass_kg(*path, PLAUSIBLE_WEIGHT)
 
     def _depth_for_target(self, y_D: float) -> tuple[float, bool] | None:
         """(z_D, enough) at y_D: the z_D whose predicted mass is m*, enough = True; or the

@@ -421,3 +421,19 @@ def test_a_logged_state_that_its_fmu_refuses_exits_2_before_writing(folder, monk
     line = refused(["--resume", str(path)], bad)
     assert line.startswith(f"excosim: {path}: the state after period 1: pile: its FMU refused")
     assert "it is corrupt (checksum mismatch)" in line
+
+
+def test_a_terrain_run_resumes_with_what_its_strategy_had_learnt(folder):
+    """The terrain strategy's surfaces and estimates travel in the resume record: the resumed
+    run decides exactly as the uninterrupted one."""
+    terrain = scenario(["adaptation.strategy=terrain", "adaptation.assumed_repose_angle_deg=40.4"])
+    reference = folder / "terrain-full.mcap"
+    assert run_campaign(terrain, log_path=reference).termination == "periods"
+    at, after = cut_points(reference)["inside period 3's chunk"]
+    path = cut(reference, folder / "terrain-cut.mcap", at)
+    result = resume_campaign(prepare_resume(path))
+    assert result.termination == "periods", result.message
+    assert_same_run(path, reference)
+    saved = json.loads(read_run(path).resume_states[after])
+    jsonschema.validate(saved, RESUME_STATE_SCHEMA)
+    assert len(saved["strategy"]["hypotheses"]) == len(saved["strategy"]["weights"]) > 1

@@ -32,9 +32,9 @@ import numpy as np
 
 from orchestrator.campaign.record import period_record, records_dataframe
 from orchestrator.campaign.resume_state import resume_record
+from orchestrator.campaign.strategy import adaptation_strategy
 from orchestrator.campaign.watchdog import StepWatchdog
 from orchestrator.scenario.model import Scenario, load_scenario
-from orchestrator.campaign.strategy import adaptation_strategy
 from planner.adaptation import AdaptationState, Decision
 from planner.trajectory import JointTrajectory
 from plant_models.geometry import Unreachable

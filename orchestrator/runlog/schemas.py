@@ -227,11 +227,15 @@ RESUME_STATE_SCHEMA: dict = {"title": "excosim.ResumeState", **_object(
         "weighed_mass_kg": _number("the load cell's reading after period k, kg (the next "
                                    "period's D follows from it)"),
         "strategy": _object("what the terrain strategy learnt up to period k (absent for the "
-                            "rule strategies)", {
-            "surface_z_m": {"type": "array", "items": {"type": "number"},
-                            "description": "the planner's surface estimate at its cells, m"},
-            "mass_per_area_kg_m2": _number("estimated mass per swept area, kg/m^2"),
-            "variance_kg2_m4": _number("variance of that estimate, kg^2/m^4"),
+                            "rule strategies; planner.repose_bank)", {
+            "weights": {"type": "array", "items": {"type": "number"},
+                        "description": "weight of each repose hypothesis"},
+            "hypotheses": {"type": "array", "items": _object("one repose hypothesis", {
+                "surface_z_m": {"type": "array", "items": {"type": "number"},
+                                "description": "its surface estimate at the cells, m"},
+                "mass_per_area_kg_m2": _number("its mass per swept area, kg/m^2"),
+                "variance_kg2_m4": _number("variance of that estimate, kg^2/m^4"),
+            })},
         }),
         "plant": _object("the simulated plant's state (orchestrator.plants.plant_state)", {
             "format": {"type": "integer", "description": "layout of the plant state (1)"},
