@@ -7,17 +7,21 @@ the planner itself knows, and nothing of the plant's state:
 
 - its own estimate of the surface (planner.surface_estimate): flat at the path's nominal entry
   height, lowered after each period to the tip path the arm executed (forward kinematics of the
-  measured joint angles), then slumped at an assumed angle of repose;
+  measured joint angles), then slumped at an angle of repose;
 - the material's mass per swept area kappa (planner.mass_per_area), re-estimated from each
-  weighing with its uncertainty.
+  weighing with its uncertainty;
+- since the angle it is told may be off, one such surface and kappa per hypothesis of the angle
+  (the told one and REPOSE_OFFSETS_DEG around it), weighed by how well each predicted the
+  weighings (planner.repose_bank).
 
-For the next period it solves kappa A(z_D) = m* for z_D at the current y_D, A(z_D) the area
-between the surface estimate and the tip path of the planned trajectory through D (the period's
-own plan, planner.period_plan, so the prediction sees the spline the arm will follow). When even
-the deepest reachable D is predicted to fall short by more than `shortfall_share` of m*, y_D
-shifts once by dy_0 (paper Fig. 5's flag) and the first depth there is chosen by the same
-prediction; with the flag set, the campaign ends at the workspace limit. Period 1 digs at the
-paper's D0 (nothing weighed yet).
+For the next period it solves m(z_D) = m* for z_D at the current y_D, m(z_D) the bank's mixture
+of kappa_j A_j(z_D), A_j the area between hypothesis j's surface and the tip path of the planned
+trajectory through D (the period's own plan, planner.period_plan, so the prediction sees the
+spline the arm will follow). When even the deepest reachable D is predicted to fall short by
+more than `shortfall_share` of m*, y_D shifts once by dy_0 (paper Fig. 5's flag) and the first
+depth there is chosen by the plausible hypothesis that predicts the most (the old trench's
+slopes reach the new path, and only the angle says how far); with the flag set, the campaign
+ends at the workspace limit. Period 1 digs at the paper's D0 (nothing weighed yet).
 
 Decisions are planner.adaptation.Decision, with the predicted mass and kappa (with its standard
 deviation) filled in; dz is the step z_D(k) - z_D(k+1) actually taken and eps its change, so the
@@ -60,12 +64,15 @@ PLAUSIBLE_WEIGHT = 0.2
 class TerrainSettings:
     """What the terrain strategy assumes.
 
-    repose_angle_rad: the angle (rad, in (0, pi/2)) the planner assumes trench walls slump to.
+    repose_angle_rad: the angle (rad, in (0, pi/2)) the planner is told trench walls slump to
+        (the centre of its hypotheses).
     weighing_sigma_kg: the load cell's noise (kg, 1 sigma, >= 0; a floor of 0.1 kg is added).
     model_share: relative error of a predicted mass (the cell resolution, the assumed repose,
         spill); it weights a weighing against the estimate.
     drift_share: how far kappa may move from one period to the next (relative, 1 sigma).
-    new_ground_share: the same after the shift of y_D (new ground, maybe another density).
+    new_ground_share: the same after the shift of y_D (0 by default: a kappa let loose there
+        takes up the error of the surface under the new path, which the repose weights should
+        take; measured on sweeps/terrain.toml, 0.2 left the period after the shift 5-7 kg short).
     shortfall_share: the share of m* by which the deepest reachable D may fall short before
         y_D shifts (or the campaign ends).
     depth_step_m: step (m, > 0) of the scan for the depth bracket before the root search.
@@ -226,33 +233,33 @@ class TerrainAdaptation:
         surface = self.bank.hypotheses[0].surface  # where the ground starts, near enough
         top = float(np.interp(y_D, surface.y_m, surface.z_m))
         high = self.planner.shape.entry_height_m + 10 * step
-        z, area = top, self._mass(y_D, top)
-        if area is None:
+        z, mass = top, self._mass(y_D, top)
+        if mass is None:
             return None
-        while area >= wanted and z + step <= high:  # heaped ground: the target above it
-            z_above, area_above = z + step, self._mass(y_D, z + step)
-            if area_above is None or area_above < wanted:
+        while mass >= wanted and z + step <= high:  # heaped ground: the target above it
+            z_above, mass_above = z + step, self._mass(y_D, z + step)
+            if mass_above is None or mass_above < wanted:
                 return self._root(y_D, z_above, z, wanted), True
-            z, area = z_above, area_above
-        if area >= wanted:
+            z, mass = z_above, mass_above
+        if mass >= wanted:
             return z, True
         while True:
             z_below = z - step
-            area_below = self._mass(y_D, z_below)
-            if area_below is None:
-                z_below, area_below = self._reach_limit(y_D, z, z_below)
-                if area_below is None or z_below >= z:
-                    z_below, area_below = z, area
-                if area_below < wanted:
-                    short = area_below < (1.0 - self.settings.shortfall_share) * wanted
+            mass_below = self._mass(y_D, z_below)
+            if mass_below is None:
+                z_below, mass_below = self._reach_limit(y_D, z, z_below)
+                if mass_below is None or z_below >= z:
+                    z_below, mass_below = z, mass
+                if mass_below < wanted:
+                    short = mass_below < (1.0 - self.settings.shortfall_share) * wanted
                     return z_below, not short
-            if area_below >= wanted:
+            if mass_below >= wanted:
                 return self._root(y_D, z, z_below, wanted), True
-            z, area = z_below, area_below
+            z, mass = z_below, mass_below
 
     def _reach_limit(self, y_D: float, reachable_z: float,
                      unreachable_z: float) -> tuple[float, float | None]:
-        """The deepest reachable z_D between the two (bisection) and its swept area."""
+        """The deepest reachable z_D between the two (bisection) and its predicted mass."""
         for _ in range(REACH_BISECTIONS):
             middle = 0.5 * (reachable_z + unreachable_z)
             if self.planner.reachable(y_D, middle):
@@ -262,10 +269,10 @@ class TerrainAdaptation:
         return reachable_z, self._mass(y_D, reachable_z)
 
     def _root(self, y_D: float, z_high: float, z_low: float, wanted: float) -> float:
-        """z_D in [z_low, z_high] with area(z_D) = wanted (area(z_high) < wanted <= area(z_low))."""
+        """z_D in [z_low, z_high] predicted to dig `wanted` kg (less at z_high, not at z_low)."""
         def excess(z: float) -> float:
-            area = self._mass(y_D, z)
-            return (-wanted if area is None else area - wanted)
+            mass = self._mass(y_D, z)
+            return (-wanted if mass is None else mass - wanted)
 
         return float(brentq(excess, z_low, z_high, xtol=2e-3))
 
