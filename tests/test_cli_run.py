@@ -30,7 +30,7 @@ def _excosim(*args: str, cwd: Path) -> subprocess.CompletedProcess:
      "excosim: paper-2020.toml: periods: must be greater than or equal to 1, got 0"),
     ([str(PAPER), "--set", "plant.pile.parameters.densty=1800"],
      "excosim: paper-2020.toml: plant.pile.parameters.densty: Pile has no parameter 'densty' "
-     "(closest: density)"),
+     "(closest: density, density_seed, density_variation)"),
     ([str(PAPER), "--set", "limits.jerk_deg_s3=[60, 60]"],
      "excosim: paper-2020.toml: limits.jerk_deg_s3: expected 3 numbers, got 2"),
     ([str(PAPER), "--set", "periods"],

@@ -74,7 +74,8 @@ MISTAKES = [
      "'missing/pile.fmu' and no model of that name (models: HydraulicCylinder, IdealActuator, "
      "Pile, PileZelenin)"),
     ("[plant.pile.parameters]\ndensty = 1800", [],
-     "plant.pile.parameters.densty: Pile has no parameter 'densty' (closest: density)"),
+     "plant.pile.parameters.densty: Pile has no parameter 'densty' "
+     "(closest: density, density_seed, density_variation)"),
     ("[plant.pile.parameters]\ndensity = \"heavy\"", [],
      "plant.pile.parameters.density: expected a number or true/false, got 'heavy'"),
     ("[plant.pile.parameters]\ndensity = true", [],
@@ -96,7 +97,8 @@ MISTAKES = [
     ("", ["periods=five"], "periods: expected an integer, got 'five'"),
     ("", ["limits.jerk_deg_s3=[1, 2]"], "limits.jerk_deg_s3: expected 3 numbers, got 2"),
     ("", ["plant.pile.parameters.densty=1800"],
-     "plant.pile.parameters.densty: Pile has no parameter 'densty' (closest: density)"),
+     "plant.pile.parameters.densty: Pile has no parameter 'densty' "
+     "(closest: density, density_seed, density_variation)"),
     ("", ["periods"], "--set 'periods': expected KEY=VALUE, e.g. periods=5"),
     ("", ["=5"], "--set '=5': expected KEY=VALUE, e.g. periods=5"),
     ("", ["a..b=1"], "--set 'a..b=1': bad key 'a..b' (dotted names of letters, digits, _ and -)"),
