@@ -184,9 +184,9 @@ def next_deepest_point(
 
 
 class RuleAdaptation:
-    """Eq. 5 driven by a rule, as a strategy object: `initial()`, then `after(...)` per period
-    (the interface planner.terrain.TerrainAdaptation shares). rule: eps_m = rule(dm_kg);
-    target_mass_kg: m* (kg); reachable: as for next_deepest_point."""
+    """Eq. 5 driven by a rule, as a strategy object with the interface
+    planner.terrain.TerrainAdaptation shares (orchestrator.campaign.strategy). rule:
+    eps_m = rule(dm_kg); target_mass_kg: m* (kg); reachable: as for next_deepest_point."""
 
     def __init__(self, rule: Rule, defaults: AdaptationDefaults, target_mass_kg: float,
                  reachable: Reachable) -> None:
@@ -195,11 +195,6 @@ class RuleAdaptation:
 
     def initial(self) -> Decision:
         return initial_state(self.defaults, self.reachable)
-
-    def after(self, state: AdaptationState, weighed_mass_kg: float,
-              joints_rad: object = None) -> Decision:
-        """next_deepest_point from the weighed mass (kg); the rule needs no joint angles."""
-        return self.decide(state, weighed_mass_kg)
 
     def learn(self, weighed_mass_kg: float, joints_rad: object) -> None:
         """Nothing: eq. 5 holds all it knows in the AdaptationState."""
@@ -211,6 +206,9 @@ class RuleAdaptation:
     def snapshot(self) -> None:
         """None: nothing beyond the AdaptationState to keep for a resume."""
         return None
+
+    def restore(self, saved: object) -> None:
+        """Nothing to take back (snapshot is None)."""
 
 
 def _place(

@@ -76,37 +76,43 @@ class ReposeBank:
         """The weights' mean angle of repose (rad)."""
         return float(self.weights @ np.array([h.repose_angle_rad for h in self.hypotheses]))
 
-    def predicted_mass_kg(self, tip_y_m: np.ndarray, tip_z_m: np.ndarray) -> float | None:
-        """The mixture's mass (kg) for a tip path ((p,) m each), None before a weighing."""
-        masses = [h.estimate.predict_mass_kg(h.surface.swept_area(tip_y_m, tip_z_m))
+    def envelope(self, tip_y_m: np.ndarray, tip_z_m: np.ndarray) -> np.ndarray:
+        """The tip path's lowest height per cell (SurfaceEstimate.envelope): the same for every
+        hypothesis (one grid), so a path's is computed once and passed to the methods below."""
+        return self.hypotheses[0].surface.envelope(tip_y_m, tip_z_m)
+
+    def predicted_mass_kg(self, lowest_m: np.ndarray) -> float | None:
+        """The mixture's mass (kg) for a path's `envelope` (n,) m, None before a weighing."""
+        masses = [h.estimate.predict_mass_kg(h.surface.area_above(lowest_m))
                   for h in self.hypotheses]
         if any(m is None for m in masses):
             return None
         return float(self.weights @ np.array(masses))
 
-    def cautious_mass_kg(self, tip_y_m: np.ndarray, tip_z_m: np.ndarray,
-                         min_weight: float) -> float | None:
-        """The largest mass (kg) a hypothesis of weight >= min_weight predicts for the tip path
-        (None before a weighing). Where the angle decides the ground (an old trench's slopes
-        under a new path) the mixture of surfaces slumped at different angles describes no
-        ground at all; the plausible hypothesis that predicts most digs least deep."""
-        masses = [h.estimate.predict_mass_kg(h.surface.swept_area(tip_y_m, tip_z_m))
+    def cautious_mass_kg(self, lowest_m: np.ndarray, min_weight: float) -> float | None:
+        """The largest mass (kg) a hypothesis of weight >= min_weight predicts for a path's
+        `envelope` (n,) m (None before a weighing). Where the angle decides the ground (an
+        old trench's slopes under a new path) the mixture of surfaces slumped at different
+        angles describes no ground at all; the plausible hypothesis that predicts most digs
+        least deep."""
+        masses = [h.estimate.predict_mass_kg(h.surface.area_above(lowest_m))
                   for h, w in zip(self.hypotheses, self.weights, strict=True)
                   if w >= min_weight]
         if not masses:  # min_weight above every weight: the most likely one
             h = self.hypotheses[int(np.argmax(self.weights))]
-            masses = [h.estimate.predict_mass_kg(h.surface.swept_area(tip_y_m, tip_z_m))]
+            masses = [h.estimate.predict_mass_kg(h.surface.area_above(lowest_m))]
         if any(m is None for m in masses):
             return None
         return float(max(masses))
 
-    def learn(self, mass_kg: float, tip_y_m: np.ndarray, tip_z_m: np.ndarray,
-              noise_sigma_kg: float, model_share: float, drift_share: float) -> None:
-        """Take in a weighing mass_kg (kg) of a period whose executed tip path was
-        (tip_y_m, tip_z_m) (m): weights, then each kappa, then each surface cut and slumped."""
+    def learn(self, mass_kg: float, lowest_m: np.ndarray, noise_sigma_kg: float,
+              model_share: float, drift_share: float) -> None:
+        """Take in a weighing mass_kg (kg) of a period whose executed tip path had the
+        `envelope` lowest_m (n,) m: weights, then each kappa, then each surface cut and
+        slumped."""
         likelihoods, updated = [], []
         for h in self.hypotheses:
-            area = h.surface.swept_area(tip_y_m, tip_z_m)
+            area = h.surface.area_above(lowest_m)
             estimate = h.estimate
             if area > 1e-6 * h.surface.cell_m:  # a period that swept nothing says nothing
                 if estimate.kappa_kg_m2 is not None:
@@ -116,7 +122,7 @@ class ReposeBank:
                     likelihoods.append(-0.5 * ((mass_kg - predicted) ** 2 / variance
                                                + math.log(variance)))
                 estimate = estimate.weighed(mass_kg, area, noise_sigma_kg, model_share)
-            surface = h.surface.cut(tip_y_m, tip_z_m).slumped(h.repose_angle_rad)
+            surface = h.surface.lowered(lowest_m).slumped(h.repose_angle_rad)
             updated.append(replace(h, surface=surface, estimate=estimate.drifted(drift_share)))
         if len(likelihoods) == len(self.hypotheses):
             log_w = np.log(self.weights) + np.array(likelihoods)

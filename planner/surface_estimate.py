@@ -78,12 +78,20 @@ class SurfaceEstimate:
 
     def swept_area(self, tip_y_m: np.ndarray, tip_z_m: np.ndarray) -> float:
         """Area (m^2) of ground above the tip path: what the path is predicted to cut."""
-        depth = self.z_m - self.envelope(tip_y_m, tip_z_m)
+        return self.area_above(self.envelope(tip_y_m, tip_z_m))
+
+    def area_above(self, lowest_m: np.ndarray) -> float:
+        """Area (m^2) of ground above an `envelope` (n,) m (of any surface on this grid)."""
+        depth = self.z_m - lowest_m
         return float(np.sum(depth[depth > 0.0]) * self.cell_m)
 
     def cut(self, tip_y_m: np.ndarray, tip_z_m: np.ndarray) -> SurfaceEstimate:
         """The surface lowered to the tip path wherever the path ran below it."""
-        return SurfaceEstimate(self.y_m, np.minimum(self.z_m, self.envelope(tip_y_m, tip_z_m)))
+        return self.lowered(self.envelope(tip_y_m, tip_z_m))
+
+    def lowered(self, lowest_m: np.ndarray) -> SurfaceEstimate:
+        """The surface lowered to an `envelope` (n,) m wherever it runs below it."""
+        return SurfaceEstimate(self.y_m, np.minimum(self.z_m, lowest_m))
 
     def slumped(self, repose_angle_rad: float) -> SurfaceEstimate:
         """The surface after its walls slumped to repose_angle_rad (rad, in (0, pi/2)).

@@ -100,7 +100,8 @@ class TerrainSettings:
 
 
 class TerrainAdaptation:
-    """The terrain-aware strategy for one campaign: `initial()`, then `after(...)` per period.
+    """The terrain-aware strategy for one campaign: `initial()`, then per period `learn(...)` and
+    `decide(...)` (orchestrator.campaign.strategy).
 
     planner: plans (and checks the reach of) the period through a D (its geometry and path
     shape give the forward kinematics and the nominal surface). defaults: D0, dy_0 (dz_0 is
@@ -123,19 +124,12 @@ class TerrainAdaptation:
         angles = assumed + np.radians(REPOSE_OFFSETS_DEG)
         angles = angles[(angles > math.radians(15.0)) & (angles < math.radians(80.0))]
         self._cautious = False
+        self._envelopes: dict[tuple[float, float], np.ndarray | None] = {}
         self.bank = ReposeBank(surface, angles, assumed, math.radians(REPOSE_PRIOR_SIGMA_DEG))
 
     def initial(self) -> Decision:
         """Period 1 at D0 (or after the shift, if D0 is out of reach)."""
         return initial_state(self.defaults, self.planner.reachable)
-
-    def after(self, state: AdaptationState, weighed_mass_kg: float,
-              joints_rad: np.ndarray) -> Decision:
-        """The deepest point of period k+1 after period k (`state`) weighed weighed_mass_kg
-        (kg) with the arm through joints_rad ((m, 3) rad, measured, boom/stick/bucket):
-        `learn`, then `decide`."""
-        self.learn(weighed_mass_kg, joints_rad)
-        return self.decide(state, weighed_mass_kg)
 
     def learn(self, weighed_mass_kg: float, joints_rad: np.ndarray) -> None:
         """Take in a period: its weighing (kg) and its executed path (joints_rad, (m, 3) rad)
@@ -144,7 +138,7 @@ class TerrainAdaptation:
         _check_mass(weighed_mass_kg)
         s = self.settings
         tip_y, tip_z, _ = forward_kinematics(self.planner.geometry, np.asarray(joints_rad))
-        self.bank.learn(float(weighed_mass_kg), tip_y, tip_z,
+        self.bank.learn(float(weighed_mass_kg), self.bank.envelope(tip_y, tip_z),
                         math.hypot(s.weighing_sigma_kg, 0.1), s.model_share, s.drift_share)
 
     def snapshot(self) -> dict[str, object]:
@@ -184,8 +178,8 @@ class TerrainAdaptation:
     def predicted_mass_kg(self, y_D: float, z_D: float) -> float | None:
         """The mass (kg) the period through D is predicted to dig on what has been learnt;
         None when D is out of reach or nothing is weighed yet."""
-        path = self._tip_path(y_D, z_D)
-        return None if path is None else self.bank.predicted_mass_kg(*path)
+        lowest = self._envelope(y_D, z_D)
+        return None if lowest is None else self.bank.predicted_mass_kg(lowest)
 
     @property
     def repose_angle_estimate_rad(self) -> float:
@@ -208,21 +202,28 @@ class TerrainAdaptation:
                 "mass_per_area_kg_m2": self.bank.kappa_kg_m2,
                 "mass_per_area_sigma_kg_m2": self.bank.kappa_sigma_kg_m2}
 
-    def _tip_path(self, y_D: float, z_D: float) -> tuple[np.ndarray, np.ndarray] | None:
-        plan = self.planner.plan(y_D, z_D)
-        if isinstance(plan, Unreachable):
-            return None
-        t = np.linspace(0.0, plan.duration, max(2, math.ceil(plan.duration / PLAN_SAMPLE_S) + 1))
-        tip_y, tip_z, _ = forward_kinematics(self.planner.geometry, plan(t))
-        return tip_y, tip_z
+    def _envelope(self, y_D: float, z_D: float) -> np.ndarray | None:
+        """The planned path's lowest tip height per cell through D, None out of reach; kept
+        per D like the planner's plans (it depends on the plan and the grid only)."""
+        key = (float(y_D), float(z_D))
+        if key not in self._envelopes:
+            plan = self.planner.plan(*key)
+            if isinstance(plan, Unreachable):
+                self._envelopes[key] = None
+            else:
+                t = np.linspace(0.0, plan.duration,
+                                max(2, math.ceil(plan.duration / PLAN_SAMPLE_S) + 1))
+                tip_y, tip_z, _ = forward_kinematics(self.planner.geometry, plan(t))
+                self._envelopes[key] = self.bank.envelope(tip_y, tip_z)
+        return self._envelopes[key]
 
     def _mass(self, y_D: float, z_D: float) -> float | None:
         """The predicted mass (kg) through D, or None out of reach (the search's measure); in
         the first period after the shift, the most any plausible repose hypothesis predicts."""
         if not self._cautious:
             return self.predicted_mass_kg(y_D, z_D)
-        path = self._tip_path(y_D, z_D)
-        return None if path is None else self.bank.cautious_mass_kg(*path, PLAUSIBLE_WEIGHT)
+        lowest = self._envelope(y_D, z_D)
+        return None if lowest is None else self.bank.cautious_mass_kg(lowest, PLAUSIBLE_WEIGHT)
 
     def _depth_for_target(self, y_D: float) -> tuple[float, bool] | None:
         """(z_D, enough) at y_D: the z_D whose predicted mass is m*, enough = True; or the

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_pile_fmu import Pile, built  # noqa: F401  (the fixture)
+from test_pile_fmu import Pile, built, make_pile  # noqa: F401  (the fixtures)
+
+TIP = (-9.0, 0.5)  # where the tip starts: above the ground at the paper's D0
 
 MASK64 = (1 << 64) - 1
 
@@ -34,19 +36,6 @@ def deviation(y: np.ndarray, y_min: float, length: float, seed: int) -> np.ndarr
                      for ji, fi in zip(j, f, strict=True)])
 
 
-@pytest.fixture
-def make_pile(built):  # noqa: F811
-    made: list[Pile] = []
-
-    def make(tip=(-9.0, 0.5), **parameters) -> Pile:
-        made.append(Pile(*built, tip, **parameters))
-        return made[-1]
-
-    yield make
-    for pile in made:
-        pile.free()
-
-
 def random_dig(pile: Pile, seed: int, moves: int = 150):
     """A walk of the tip in and out of the ground, dumping now and then: outputs after each step."""
     rng = np.random.default_rng(seed)
@@ -59,8 +48,8 @@ def random_dig(pile: Pile, seed: int, moves: int = 150):
 
 
 @pytest.mark.parametrize(("variation", "length"), [(0.2, 0.5), (0.5, 0.05), (0.3, 7.0)])
-def test_the_initial_mass_is_the_integral_of_an_independent_field(make_pile, variation, length):
-    pile = make_pile(density_variation=variation, density_correlation_length=length,
+def test_the_initial_mass_is_the_integral_of_an_independent_field(make_pile, variation, length):  # noqa: F811
+    pile = make_pile(TIP, density_variation=variation, density_correlation_length=length,
                      density_seed=11)
     p = pile.p
     edges = np.linspace(p["y_min"], p["y_max"], pile.n_cells + 1)
@@ -73,8 +62,9 @@ def test_the_initial_mass_is_the_integral_of_an_independent_field(make_pile, var
 
 
 @pytest.mark.parametrize("variation", [0.2, 0.5])
-def test_mass_is_conserved_with_a_density_field(make_pile, variation):
-    pile = make_pile(density_variation=variation, density_correlation_length=0.3, density_seed=4)
+def test_mass_is_conserved_with_a_density_field(make_pile, variation):  # noqa: F811
+    pile = make_pile(TIP, density_variation=variation, density_correlation_length=0.3,
+                     density_seed=4)
     m0 = pile.outputs()["pile_mass"]
     worst, lightest, heaviest = 0.0, np.inf, 0.0
     density, capacity = pile.p["density"], pile.p["capacity"]
@@ -91,18 +81,18 @@ def test_mass_is_conserved_with_a_density_field(make_pile, variation):
     assert heaviest <= 1 + variation + 1e-9
 
 
-def test_a_uniform_pile_is_unchanged_by_the_field_parameters(make_pile):
+def test_a_uniform_pile_is_unchanged_by_the_field_parameters(make_pile):  # noqa: F811
     """density_variation = 0 ignores the seed and length: the uniform pile's numbers exactly."""
-    plain = make_pile()
-    seeded = make_pile(density_seed=99, density_correlation_length=3.0)
+    plain = make_pile(TIP)
+    seeded = make_pile(TIP, density_seed=99, density_correlation_length=3.0)
     for a, b in zip(random_dig(plain, 7, 60), random_dig(seeded, 7, 60), strict=True):
         assert a == b
 
 
-def test_the_field_is_reproducible_and_differs_between_seeds(make_pile):
+def test_the_field_is_reproducible_and_differs_between_seeds(make_pile):  # noqa: F811
     runs = {}
     for name, seed in (("a", 5), ("b", 5), ("c", 6)):
-        pile = make_pile(density_variation=0.2, density_seed=seed)
+        pile = make_pile(TIP, density_variation=0.2, density_seed=seed)
         runs[name] = [o["dumped_mass"] + o["bucket_mass"] for o in random_dig(pile, 3, 80)]
     assert runs["a"] == runs["b"]
     assert max(abs(x - y) for x, y in zip(runs["a"], runs["c"], strict=True)) > 1.0
@@ -117,5 +107,5 @@ def test_bad_field_parameters_fail_initialization_naming_the_parameter(built, ca
     from fmpy.fmi1 import FMICallException
 
     with pytest.raises(FMICallException):
-        Pile(*built, (-9.0, 0.5), **{name: value})
+        Pile(*built, TIP, **{name: value})
     assert name in capsys.readouterr().out

@@ -1,5 +1,7 @@
 """The adaptation strategy a scenario names (adaptation.strategy): an object with `initial()`
-(period 1's Decision) and `after(state, weighed_mass_kg, joints_rad)` (the next period's).
+(period 1's Decision), `learn(weighed_mass_kg, joints_rad)` (take in a period),
+`decide(state, weighed_mass_kg)` (the next period's Decision), and `snapshot()` / `restore()`
+(what it learnt, for a resume; None for a strategy that learns nothing).
 
 "fuzzy", "proportional" and "fixed" are the paper's eq. 5 with a rule
 (planner.adaptation.RuleAdaptation); "terrain" predicts each period's mass from the planner's
