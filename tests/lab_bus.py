@@ -5,6 +5,8 @@ references at the emulated device's start pose."""
 from __future__ import annotations
 
 import math
+import threading
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -75,3 +77,33 @@ def still_reference(pose_rad, duration_s: float, step_s: float,
     velocity[:, 2] = amplitude * w * np.sin(w * t)
     acceleration[:, 2] = amplitude * w * w * np.cos(w * t)
     return JointReference(t, position, velocity, acceleration)
+
+
+class StallMonitor:
+    """A thread that sleeps `tick_s` at a time and keeps how late each wake-up came (bus time,
+    time.time(), as Frame.t): what the machine held this process back, whatever the cause (the
+    OS, a collector pause, the interpreter lock). Reaction times read off the bus are bounded by
+    the protocol's figure plus the stall seen over the same window."""
+
+    def __init__(self, tick_s: float = 0.002) -> None:
+        self._tick_s, self._late = tick_s, []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="stall-monitor", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            before = time.time()
+            time.sleep(self._tick_s)
+            after = time.time()
+            if after - before > 2 * self._tick_s:
+                self._late.append((after, after - before - self._tick_s))
+
+    def stop(self) -> StallMonitor:
+        self._stop.set()
+        self._thread.join()
+        return self
+
+    def worst(self, start: float, end: float) -> float:
+        """The longest stall (s) that ended in [start, end] (bus time), 0 if none."""
+        return max((late for at, late in self._late if start <= at <= end), default=0.0)

@@ -19,7 +19,9 @@ reported by the device, its heartbeat older than the consumer time, joint feedba
 feedback timeout, a command not acknowledged in time, no fresh load-cell reading. Any of them
 stops the stream, commands HOLD and raises LabStop (the campaign ends with its reason; every
 finished period is already in the run log; the stopped period's feedback is in LabStop.partial).
-Ctrl-C while streaming sends an AllStop before it propagates.
+Ctrl-C while streaming sends an AllStop before it propagates. The cyclic garbage collector is
+off while a period streams (timing.collector_paused): a full collection of a large heap would
+stop the process for longer than the feedback timeout.
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ from orchestrator.plants.lab.measurement import CycleLog, period_measurement
 from orchestrator.plants.lab.protocol import Cmd, MasterState, State, decode, encode, joint_signals
 from orchestrator.plants.lab.safety import ReferenceRefused, check_stream, on_stream_grid
 from orchestrator.plants.lab.settings import LabSettings
-from orchestrator.plants.lab.timing import Heartbeat, ScaledClock
+from orchestrator.plants.lab.timing import Heartbeat, ScaledClock, collector_paused
 from plant_models.plant import JOINTS, JointReference, PeriodMeasurement
 
 
@@ -216,7 +218,8 @@ class LabExcavator:
         self._command(Cmd.PERIOD_START, (State.STREAMING,), period=k, argument=n)
         self._period = k
         try:
-            self._stream_cycles(stream)
+            with collector_paused():  # no collector pause trips a timeout mid-stream
+                self._stream_cycles(stream)
         except KeyboardInterrupt:
             self._send("AllStop", Stop=1)
             self._stopped = "interrupted"
