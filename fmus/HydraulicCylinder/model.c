@@ -30,12 +30,16 @@
  *                            + E_end_stop + E_stored - E_stored(0),
  *   E_stored = M*v^2/2 + E_oil, E_oil = sum over both chambers of the integral of p*(Q - dV/dt);
  *   E_compensator, the compensator's share of E_throttling (not a term of its own).
- * Integration: classical RK4 with n_substeps per step, more when h/n_substeps exceeds 2/lambda,
- *   lambda a bound of the Jacobian's spectral radius (stiffness_terms), recomputed each step for M.
+ * Integration (integration.c): integrator = 0, classical RK4 with n_substeps per step, more when
+ *   h/n_substeps exceeds 2/lambda, lambda a bound of the Jacobian's spectral radius
+ *   (stiffness_terms), recomputed each step for M; integrator = 1, RODAS3 with the analytic
+ *   Jacobian (cylinder_jacobian), substeps sized by `tolerance`, the powers by the trapezoidal
+ *   rule. Energy outputs above: "RK4 quadrature" reads "the integrator's quadrature".
  */
 
 #include <math.h>
 
+#include "cylinder.h"
 #include "model.h"
 
 static const double PI = 3.14159265358979323846;
@@ -48,17 +52,6 @@ static const double MASS_LOAD_MAX = 1.0e12; /* kg: keeps M*v^2 finite */
 static const double MIN_AREA = 1.0e-7;      /* m^2: a 0.36 mm bore; smaller is no cylinder */
 
 typedef struct {
-    double x, v, psi_A, psi_B;
-} Y;
-
-/* Stage powers (W) and their integrals (J). */
-enum {
-    W_SUPPLY, W_TANK, W_THROTTLING, W_RELIEF, W_FRICTION, W_LOAD, W_END_STOP, W_OIL,
-    W_COMPENSATOR, /* of W_THROTTLING: the compensator's part */
-    N_POWER
-};
-
-typedef struct {
     Y y;
     double A_A, A_B;
     double spring, damping, flow; /* terms of the stiffness bound, see stiffness() */
@@ -66,20 +59,12 @@ typedef struct {
     double M;                     /* mass + mass_load of the last step, kg */
     double energy[N_POWER];       /* J since initialization (E_OIL: from the initial state) */
     double E_mass_load;           /* J: M v^2/2 gained when mass_load changed */
+    double scale[N_STATES];       /* RODAS3's error scales: m, m/s, Pa, Pa */
+    double h_next;                /* s, RODAS3's next substep (0: none yet) */
+    double substeps, rejected;    /* since initialization */
 } State;
 
 const size_t model_state_size = sizeof(State);
-
-/* Parameters and inputs gathered once per communication step. */
-typedef struct {
-    double A_A, A_B, stroke, V_dead_A, V_dead_B, beta, p_S, p_T, p_relief, k_relief;
-    double k_makeup, p_makeup; /* make-up opens below p_makeup = p_T - dp_makeup */
-    double dp_laminar, inv_dp_rated, inv_sqrt_rated_laminar, M, inv_mass, F_c, inv_v_c, b;
-    double q_open; /* q_rated*a: flow of one edge at dp_rated at the current opening, m^3/s */
-    double q_out;  /* meter_out_ratio*q_open: the same of a meter-out edge */
-    double p_LS;   /* compensator setting, Pa (0: none) */
-    double a, F_ext;
-} P;
 
 static double clamp(double value, double low, double high) {
     return value < low ? low : (value > high ? high : value);
@@ -122,7 +107,7 @@ static double chamber_rate(double beta, double V, double dV_dt, double Q, double
  * energy stored in the oil as the model's chamber law has it (V*p^2/(2 beta) for a chamber of
  * fixed volume). In a void p = 0: no power. What does not close is the kinetic energy, kept as
  * M v^2/2 of the state rather than integrated: the difference is the RK4 error of v. */
-static void derivatives(const P *p, const Y *y, Y *dy, double *w) {
+void cylinder_derivatives(const P *p, const Y *y, Y *dy, double *w) {
     double p_A = fmax(y->psi_A, 0.0), p_B = fmax(y->psi_B, 0.0);
     double x = clamp(y->x, 0.0, p->stroke);
     double Q_PA = 0.0, Q_AT = 0.0, Q_PB = 0.0, Q_BT = 0.0, Q_A, Q_B, force, dx, dv, tanh_v;
@@ -178,41 +163,74 @@ static void derivatives(const P *p, const Y *y, Y *dy, double *w) {
     w[W_COMPENSATOR] = (outlet_A - p_A) * Q_PA + (outlet_B - p_B) * Q_PB;
 }
 
-static void axpy(Y *out, const Y *y, double h, const Y *k) {
-    out->x = y->x + h * k->x;
-    out->v = y->v + h * k->v;
-    out->psi_A = y->psi_A + h * k->psi_A;
-    out->psi_B = y->psi_B + h * k->psi_B;
+/* d orifice / d dp (1/sqrt(Pa)): the slope of the law above, finite at dp = 0. */
+static double orifice_slope(const P *p, double dp) {
+    double r;
+    if (fabs(dp) >= p->dp_laminar) return 0.5 * sqrt(p->inv_dp_rated / fabs(dp));
+    r = dp / p->dp_laminar;
+    return p->inv_sqrt_rated_laminar * (1.25 - 0.75 * r * r);
 }
 
-static void rk4_substep(const P *p, Y *y, double *energy, double h) {
-    Y k1, k2, k3, k4, t;
-    double w1[N_POWER], w2[N_POWER], w3[N_POWER], w4[N_POWER], v_before;
+/* dQ/dp (m^3/(s Pa)) of one chamber's net inflow: its open metering edge (meter-in P->chamber
+ * through the load-holding check and compensator, or meter-out chamber->T), relief, make-up. */
+static double inflow_slope(const P *p, double pressure, int meter_in, double q_edge) {
+    double slope = 0.0, outlet = fmax(p->p_LS, pressure), drop = p->p_S - outlet;
+    if (meter_in) {
+        if (drop > 0.0 && pressure > p->p_LS) slope = -q_edge * orifice_slope(p, drop);
+    } else {
+        slope = -q_edge * orifice_slope(p, pressure - p->p_T);
+    }
+    if (pressure > p->p_relief) slope -= p->k_relief;
+    if (pressure < p->p_makeup) slope -= p->k_makeup;
+    return slope;
+}
+
+/* J = df/dy of cylinder_derivatives (rows dx, dv, dpsi_A, dpsi_B; columns x, v, psi_A, psi_B),
+ * differentiated branch by branch: on a stop the rows of the frozen states are 0; where a max()
+ * or the void switch sits exactly on its kink, the side the derivatives take. */
+void cylinder_jacobian(const P *p, const Y *y, double *J) {
+    double p_A = fmax(y->psi_A, 0.0), p_B = fmax(y->psi_B, 0.0);
+    double x = clamp(y->x, 0.0, p->stroke);
+    int inside = y->x > 0.0 && y->x < p->stroke;
+    double V_A = p->V_dead_A + p->A_A * x, V_B = p->V_dead_B + p->A_B * (p->stroke - x);
+    double g_A, g_B, tanh_v = tanh(y->v * p->inv_v_c), dx, force;
+    int on_stop = (y->x <= 0.0 && y->v <= 0.0) || (y->x >= p->stroke && y->v >= 0.0);
+    double void_A = y->psi_A < 0.0 ? y->psi_A : 0.0, void_B = y->psi_B < 0.0 ? y->psi_B : 0.0;
+    Y dy;
+    double w[N_POWER];
     int i;
-    derivatives(p, y, &k1, w1);
-    axpy(&t, y, 0.5 * h, &k1);
-    derivatives(p, &t, &k2, w2);
-    axpy(&t, y, 0.5 * h, &k2);
-    derivatives(p, &t, &k3, w3);
-    axpy(&t, y, h, &k3);
-    derivatives(p, &t, &k4, w4);
-    y->x += h / 6.0 * (k1.x + 2.0 * k2.x + 2.0 * k3.x + k4.x);
-    y->v += h / 6.0 * (k1.v + 2.0 * k2.v + 2.0 * k3.v + k4.v);
-    y->psi_A += h / 6.0 * (k1.psi_A + 2.0 * k2.psi_A + 2.0 * k3.psi_A + k4.psi_A);
-    y->psi_B += h / 6.0 * (k1.psi_B + 2.0 * k2.psi_B + 2.0 * k3.psi_B + k4.psi_B);
-    for (i = 0; i < N_POWER; i++) {
-        energy[i] += h / 6.0 * (w1[i] + 2.0 * w2[i] + 2.0 * w3[i] + w4[i]);
+    cylinder_derivatives(p, y, &dy, w);
+    for (i = 0; i < N_STATES * N_STATES; i++) J[i] = 0.0;
+    if (p->a > 0.0) { /* P->A, B->T */
+        g_A = inflow_slope(p, p_A, 1, p->q_open);
+        g_B = inflow_slope(p, p_B, 0, p->q_out);
+    } else if (p->a < 0.0) { /* P->B, A->T; q_open, q_out < 0 */
+        g_A = inflow_slope(p, p_A, 0, -p->q_out);
+        g_B = inflow_slope(p, p_B, 1, -p->q_open);
+    } else {
+        g_A = inflow_slope(p, p_A, 0, 0.0);
+        g_B = inflow_slope(p, p_B, 0, 0.0);
     }
-    v_before = y->v;
-    if (y->x <= 0.0) {
-        y->x = 0.0;
-        y->v = fmax(y->v, 0.0);
-    } else if (y->x >= p->stroke) {
-        y->x = p->stroke;
-        y->v = fmin(y->v, 0.0);
+    force = p_A * p->A_A - p_B * p->A_B - p->F_ext - p->F_c * tanh_v - p->b * y->v;
+    dx = dy.x;
+    if (!on_stop) J[0 * 4 + 1] = 1.0;
+    /* dv: the force law, off the stops or while it pushes away from the stop */
+    if (!on_stop || (y->x <= 0.0 ? force > 0.0 : force < 0.0)) {
+        J[1 * 4 + 1] = (-p->F_c * p->inv_v_c * (1.0 - tanh_v * tanh_v) - p->b) * p->inv_mass;
+        J[1 * 4 + 2] = y->psi_A > 0.0 ? p->A_A * p->inv_mass : 0.0;
+        J[1 * 4 + 3] = y->psi_B > 0.0 ? -p->A_B * p->inv_mass : 0.0;
     }
-    /* The inelastic stop takes the kinetic energy of the velocity it zeroes. */
-    energy[W_END_STOP] += 0.5 * p->M * (v_before * v_before - y->v * y->v);
+    /* chambers: rate = (beta (Q - dV/dt) - void dV/dt) / V, dV_A/dt = A_A dx, dV_B/dt = -A_B dx */
+    if (inside) {
+        J[2 * 4 + 0] = -dy.psi_A * p->A_A / V_A;
+        J[3 * 4 + 0] = dy.psi_B * p->A_B / V_B;
+    }
+    if (!on_stop) {
+        J[2 * 4 + 1] = -p->A_A * (p->beta + void_A) / V_A;
+        J[3 * 4 + 1] = p->A_B * (p->beta + void_B) / V_B;
+    }
+    J[2 * 4 + 2] = y->psi_A > 0.0 ? p->beta / V_A * g_A : -p->A_A * dx / V_A;
+    J[3 * 4 + 3] = y->psi_B > 0.0 ? p->beta / V_B * g_B : p->A_B * dx / V_B;
 }
 
 static void gather(const double *v, const State *s, P *p) {
@@ -260,6 +278,8 @@ static void write_outputs(double *v, const State *s) {
     v[VR_E_mass_load] = s->E_mass_load;
     v[VR_E_stored] = 0.5 * s->M * s->y.v * s->y.v + s->energy[W_OIL];
     v[VR_E_compensator] = s->energy[W_COMPENSATOR];
+    v[VR_substeps] = s->substeps;
+    v[VR_rejected_substeps] = s->rejected;
 }
 
 static int finite_positive(double value) { return isfinite(value) && value > 0.0; }
@@ -307,6 +327,16 @@ static const char *check_parameters(const double *v) {
     }
     if (!(v[VR_x0] >= 0.0 && v[VR_x0] <= v[VR_stroke])) return "x0 must lie in [0, stroke]";
     if (!(v[VR_n_substeps] >= 1.0)) return "n_substeps must be >= 1";
+    if (!(v[VR_integrator] == 0.0 || v[VR_integrator] == 1.0)) {
+        return "integrator must be 0 (RK4) or 1 (RODAS3)";
+    }
+    if (!(v[VR_tolerance] >= 1e-12 && v[VR_tolerance] <= 1e-2)) {
+        return "tolerance must lie in [1e-12, 1e-2]";
+    }
+    if (!finite_positive(v[VR_q_rated] / (PI / 4.0 * (v[VR_bore] * v[VR_bore]
+                                                       - v[VR_rod] * v[VR_rod])))) {
+        return "q_rated/A_B (the full speed) must be finite";
+    }
     return NULL;
 }
 
@@ -357,6 +387,10 @@ int model_initialize(double *v, void *state, const char **error) {
     s->M = v[VR_mass] + v[VR_mass_load];
     for (i = 0; i < N_POWER; i++) s->energy[i] = 0.0;
     s->E_mass_load = 0.0;
+    s->h_next = s->substeps = s->rejected = 0.0;
+    s->scale[0] = v[VR_tolerance] * v[VR_stroke];
+    s->scale[1] = v[VR_tolerance] * v[VR_q_rated] / s->A_B;
+    s->scale[2] = s->scale[3] = v[VR_tolerance] * fmax(v[VR_p_supply], v[VR_p_relief]);
     stiffness_terms(v, s);
     p_max = fmax(v[VR_p_supply], v[VR_p_relief]);
     s->F_limit = LOAD_LIMIT_FACTOR * p_max * fmin(s->A_A, s->A_B);
@@ -392,8 +426,10 @@ int model_initialize(double *v, void *state, const char **error) {
 int model_do_step(double *v, void *state, double t, double h, const char **error) {
     State *s = state;
     P p;
-    double n = v[VR_n_substeps], needed, h_sub, M;
-    long i, count;
+    double n = v[VR_n_substeps], needed, M, energy[N_POWER], h_next, accepted, rejected;
+    long count;
+    int i;
+    Y y;
     const char *problem = check_mass_load(v[VR_mass_load]);
     (void)t;
     if (problem != NULL) {
@@ -407,16 +443,33 @@ int model_do_step(double *v, void *state, double t, double h, const char **error
         s->E_mass_load += 0.5 * (M - s->M) * s->y.v * s->y.v;
         s->M = M;
     }
-    needed = ceil(h / stable_substep(s));
-    if (needed > n) n = needed;
-    if (n > 1e8) {
-        *error = "communication step too long: more than 1e8 stable RK4 substeps needed";
-        return 1;
-    }
-    count = (long)n;
-    h_sub = h / (double)count;
     gather(v, s, &p);
-    for (i = 0; i < count; i++) rk4_substep(&p, &s->y, s->energy, h_sub);
+    if (v[VR_integrator] == 1.0) { /* on a copy: a step that fails leaves the state as it was */
+        y = s->y;
+        h_next = s->h_next;
+        accepted = rejected = 0.0;
+        for (i = 0; i < N_POWER; i++) energy[i] = s->energy[i];
+        problem = cylinder_rodas3(&p, &y, energy, h, s->scale, &h_next, &accepted, &rejected);
+        s->rejected += rejected;
+        if (problem != NULL) {
+            *error = problem;
+            return 1;
+        }
+        s->y = y;
+        s->h_next = h_next;
+        s->substeps += accepted;
+        for (i = 0; i < N_POWER; i++) s->energy[i] = energy[i];
+    } else {
+        needed = ceil(h / stable_substep(s));
+        if (needed > n) n = needed;
+        if (n > 1e8) {
+            *error = "communication step too long: more than 1e8 stable RK4 substeps needed";
+            return 1;
+        }
+        count = (long)n;
+        cylinder_rk4(&p, &s->y, s->energy, h, count);
+        s->substeps += (double)count;
+    }
     write_outputs(v, s);
     return 0;
 }
