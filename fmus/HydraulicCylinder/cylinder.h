@@ -31,9 +31,9 @@ typedef struct {
 } P;
 
 /* model.c: dy = f(y) with the stage powers w (W), and J = df/dy (4 x 4, row-major, the states'
- * order above) of the same piecewise law, one-sided where it switches. */
+ * order above) of the same piecewise law, one-sided where it switches, given dy = f(y). */
 void cylinder_derivatives(const P *p, const Y *y, Y *dy, double *w);
-void cylinder_jacobian(const P *p, const Y *y, double *J);
+void cylinder_jacobian(const P *p, const Y *y, const Y *dy, double *J);
 
 /* integration.c: advance y by h (s), adding the powers' integrals to energy (J). */
 void cylinder_rk4(const P *p, Y *y, double *energy, double h, long substeps);

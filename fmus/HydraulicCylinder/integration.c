@@ -11,7 +11,8 @@
  *   from it (the last accepted size carries over to the next communication step). The powers
  *   are integrated with the trapezoidal rule over each substep (f at its end is the next
  *   substep's f(y) anyway), so the energy balance closes to that rule's error, O(h^3) per
- *   substep where the motion is smooth.
+ *   substep where the motion is smooth. The Jacobian is evaluated once per accepted state,
+ *   from the f(y) at hand: a rejected substep retried from the same state reuses it.
  * Both: after each substep the stroke is clamped to [0, stroke] and a velocity into the stop
  *   zeroed; the stop takes the kinetic energy of what is zeroed.
  */
@@ -76,18 +77,15 @@ static void rhs(const void *context, const double *y, double *dy) {
     cylinder_derivatives(context, (const Y *)y, (Y *)dy, w);
 }
 
-static void jacobian(const void *context, const double *y, double *J) {
-    cylinder_jacobian(context, (const Y *)y, J);
-}
-
 const char *cylinder_rodas3(const P *p, Y *y, double *energy, double h, const double *scale,
                             double *h_next, double *accepted, double *rejected) {
     Y f0, f1, y1;
-    double w0[N_POWER], w1[N_POWER], done = 0.0, proposed, err, hs;
+    double w0[N_POWER], w1[N_POWER], J[N_STATES * N_STATES], done = 0.0, proposed, err, hs;
     long attempts = 0;
     int i, last;
     proposed = *h_next > 0.0 ? *h_next : 0.1 * h;
     cylinder_derivatives(p, y, &f0, w0);
+    cylinder_jacobian(p, y, &f0, J);
     while (done < h) {
         if (++attempts > MAX_ATTEMPTS) {
             return "RODAS3 made no progress: 100000 substeps in one communication step";
@@ -95,8 +93,8 @@ const char *cylinder_rodas3(const P *p, Y *y, double *energy, double h, const do
         /* the last substep of the step takes what is left, never leaving a sliver after it */
         last = done + 1.05 * proposed >= h;
         hs = last ? h - done : proposed;
-        err = rodas3_attempt(p, rhs, jacobian, N_STATES, (const double *)y, (const double *)&f0,
-                             hs, scale, (double *)&y1);
+        err = rodas3_attempt(p, rhs, N_STATES, (const double *)y, (const double *)&f0, J, hs,
+                             scale, (double *)&y1);
         if (err < 0.0 || err > 1.0) { /* rejected: smaller (a quarter if not finite) */
             *rejected += 1.0;
             proposed = err < 0.0 ? 0.25 * hs : rodas3_next_step(hs, err);
@@ -110,6 +108,7 @@ const char *cylinder_rodas3(const P *p, Y *y, double *energy, double h, const do
         *y = y1;
         f0 = f1;
         for (i = 0; i < N_POWER; i++) w0[i] = w1[i];
+        if (!last) cylinder_jacobian(p, y, &f0, J); /* the next step starts with its own */
         done = last ? h : done + hs;
         /* a last substep cut short says nothing against the size before it */
         proposed = last ? fmax(proposed, rodas3_next_step(hs, err))

@@ -188,7 +188,7 @@ static double inflow_slope(const P *p, double pressure, int meter_in, double q_e
 /* J = df/dy of cylinder_derivatives (rows dx, dv, dpsi_A, dpsi_B; columns x, v, psi_A, psi_B),
  * differentiated branch by branch: on a stop the rows of the frozen states are 0; where a max()
  * or the void switch sits exactly on its kink, the side the derivatives take. */
-void cylinder_jacobian(const P *p, const Y *y, double *J) {
+void cylinder_jacobian(const P *p, const Y *y, const Y *dy, double *J) {
     double p_A = fmax(y->psi_A, 0.0), p_B = fmax(y->psi_B, 0.0);
     double x = clamp(y->x, 0.0, p->stroke);
     int inside = y->x > 0.0 && y->x < p->stroke;
@@ -196,10 +196,7 @@ void cylinder_jacobian(const P *p, const Y *y, double *J) {
     double g_A, g_B, tanh_v = tanh(y->v * p->inv_v_c), dx, force;
     int on_stop = (y->x <= 0.0 && y->v <= 0.0) || (y->x >= p->stroke && y->v >= 0.0);
     double void_A = y->psi_A < 0.0 ? y->psi_A : 0.0, void_B = y->psi_B < 0.0 ? y->psi_B : 0.0;
-    Y dy;
-    double w[N_POWER];
     int i;
-    cylinder_derivatives(p, y, &dy, w);
     for (i = 0; i < N_STATES * N_STATES; i++) J[i] = 0.0;
     if (p->a > 0.0) { /* P->A, B->T */
         g_A = inflow_slope(p, p_A, 1, p->q_open);
@@ -212,7 +209,7 @@ void cylinder_jacobian(const P *p, const Y *y, double *J) {
         g_B = inflow_slope(p, p_B, 0, 0.0);
     }
     force = p_A * p->A_A - p_B * p->A_B - p->F_ext - p->F_c * tanh_v - p->b * y->v;
-    dx = dy.x;
+    dx = dy->x;
     if (!on_stop) J[0 * 4 + 1] = 1.0;
     /* dv: the force law, off the stops or while it pushes away from the stop */
     if (!on_stop || (y->x <= 0.0 ? force > 0.0 : force < 0.0)) {
@@ -222,8 +219,8 @@ void cylinder_jacobian(const P *p, const Y *y, double *J) {
     }
     /* chambers: rate = (beta (Q - dV/dt) - void dV/dt) / V, dV_A/dt = A_A dx, dV_B/dt = -A_B dx */
     if (inside) {
-        J[2 * 4 + 0] = -dy.psi_A * p->A_A / V_A;
-        J[3 * 4 + 0] = dy.psi_B * p->A_B / V_B;
+        J[2 * 4 + 0] = -dy->psi_A * p->A_A / V_A;
+        J[3 * 4 + 0] = dy->psi_B * p->A_B / V_B;
     }
     if (!on_stop) {
         J[2 * 4 + 1] = -p->A_A * (p->beta + void_A) / V_A;

@@ -48,15 +48,14 @@ static void lu_solve(int n, const double *LU, const int *pivot, double *b) {
     }
 }
 
-double rodas3_attempt(const void *context, rodas3_rhs f, rodas3_jacobian jacobian, int n,
-                      const double *y, const double *f0, double h, const double *scale,
+double rodas3_attempt(const void *context, rodas3_rhs f, int n, const double *y,
+                      const double *f0, const double *J, double h, const double *scale,
                       double *y1) {
     double G[RODAS3_MAX_N * RODAS3_MAX_N], k1[RODAS3_MAX_N], k2[RODAS3_MAX_N], k3[RODAS3_MAX_N];
     double k4[RODAS3_MAX_N], stage[RODAS3_MAX_N], sum = 0.0;
     int pivot[RODAS3_MAX_N] = {0}, i;
     const double inv_h = 1.0 / h;
-    jacobian(context, y, G);
-    for (i = 0; i < n * n; i++) G[i] = -G[i];
+    for (i = 0; i < n * n; i++) G[i] = -J[i];
     for (i = 0; i < n; i++) G[i * n + i] += inv_h / GAMMA;
     if (!lu_factor(n, G, pivot)) return -1.0;
 

@@ -18,15 +18,15 @@
 
 #define RODAS3_MAX_N 8
 
-/* dy = f(y) and J = df/dy (n x n, row-major) of a system of n <= RODAS3_MAX_N states. */
+/* dy = f(y) of a system of n <= RODAS3_MAX_N states. */
 typedef void (*rodas3_rhs)(const void *context, const double *y, double *dy);
-typedef void (*rodas3_jacobian)(const void *context, const double *y, double *J);
 
-/* One step of size h from y, f0 = f(y): writes y1 and returns the error's root-mean-square
- * norm with the weights 1/scale (<= 1: within tolerance), or -1 when I/(h gamma) - J is
- * singular or a value is not finite. */
-double rodas3_attempt(const void *context, rodas3_rhs f, rodas3_jacobian jacobian, int n,
-                      const double *y, const double *f0, double h, const double *scale,
+/* One step of size h from y, f0 = f(y), J = df/dy at y (n x n, row-major; the caller
+ * evaluates it once per state, so a rejected step retried from the same y does not pay for it
+ * again): writes y1 and returns the error's root-mean-square norm with the weights 1/scale
+ * (<= 1: within tolerance), or -1 when I/(h gamma) - J is singular or a value is not finite. */
+double rodas3_attempt(const void *context, rodas3_rhs f, int n, const double *y,
+                      const double *f0, const double *J, double h, const double *scale,
                       double *y1);
 
 /* The next step size after a step of size h with error norm err (> 1: rejected), the usual
