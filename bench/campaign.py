@@ -1,27 +1,37 @@
 """Wall time of the paper campaign with full MCAP logging, where it goes, and the master's cost
-per step next to the ecos master stepping the same FMUs.
+per step next to the ecos master stepping the same FMUs; the same figures of an earlier commit
+side by side.
 
-    python bench/campaign.py
+    python bench/campaign.py [--against REV] [--pairs N]
 
 1. Runs scenarios/paper-2020.toml (20 periods, the simulated excavator, MCAP log in a temporary
    folder) with perf_counter accumulators around the planner (PeriodPlanner._plan: via-points,
    spline, range check), the plant (SimulatedExcavator.run_period), the log (RunLog: open,
    log_period, close) and the capture of each period's resume state (the four FMUs' serialized
    states and the master's: orchestrator.campaign.resume_state; its encoding and writing are
-   in the log's share). Real-time factor = simulated time / wall time (target >= 100); logging
+   in the log's share). Real-time factor = simulated time / wall time (target >= 600); logging
    share of wall time (target <= 10 %).
 2. Splits the plant's time into FMUs and master: the FMUs are stepped again, alone, through the
    same fast path (fmus.runs.FastSlave) with the inputs the run recorded (cylinder u, F_ext,
    mass_load and, on the load-sensing pump, p_pump and p_LS; the Pile's tip inputs); the rest
-   of the plant's time is the master (kinematic coupling, servos, the pump's law, bookkeeping).
+   of the plant's time is the master (kinematic coupling, servos, the pump's law, bookkeeping;
+   target <= 5 us per step). The FMUs' time alone is the floor: the real-time factor a master
+   that cost nothing would reach with these FMUs at their substeps.
 3. Steps the same FMUs with the same inputs under the ecos master (ecospy: set_real per input,
    step, get_real per output, as fmus.runs.run_ecospy does) for comparison per step.
+4. Side by side: checks REV (default HEAD~1, the previous commit) out into a temporary git
+   worktree and measures both trees with this script's own code (steps 1-2), each in a fresh
+   process, alternately N times (default 2) so that a shared machine's drift hits both; prints
+   each tree's median. --against none skips it.
 The process is pinned to one CPU so the figures do not wander between cores.
 """
 
 from __future__ import annotations
 
+import argparse
+import json
 import os
+import subprocess
 import sys
 import tempfile
 import time
@@ -30,7 +40,10 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+HERE = Path(__file__).resolve().parents[1]
+# --tree PATH (the side-by-side runs): import the package from that checkout instead of this one.
+TREE = Path(sys.argv[sys.argv.index("--tree") + 1]) if "--tree" in sys.argv else HERE
+sys.path.insert(0, str(TREE))
 
 from fmus.runs import FastSlave, run_ecospy  # noqa: E402
 from orchestrator.campaign import loop as campaign  # noqa: E402
@@ -43,8 +56,8 @@ from planner import period_plan  # noqa: E402
 from plant_models.linkage import JOINT_NAMES  # noqa: E402
 from plant_models.model_spec import CYLINDER_OUTPUTS, PILE_OUTPUTS  # noqa: E402
 
-SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "paper-2020.toml"
-RTF_TARGET, LOG_SHARE_TARGET = 100.0, 0.10
+SCENARIO = TREE / "scenarios" / "paper-2020.toml"
+RTF_TARGET, LOG_SHARE_TARGET, MASTER_TARGET_US = 600.0, 0.10, 5.0
 
 
 def timed(owner, name: str, bucket: str, seconds: dict, keep: list | None = None) -> None:
@@ -111,9 +124,9 @@ def recorded_inputs(scenario, measurements) -> dict[str, tuple[dict, dict]]:
     return series
 
 
-def replay_fast(scenario, series) -> tuple[float, int]:
-    """Seconds to step every FMU through its recorded inputs with FastSlave; steps per FMU."""
-    total, steps = 0.0, 0
+def replay_fast(scenario, series) -> tuple[dict[str, float], int]:
+    """Seconds per FMU to step it through its recorded inputs with FastSlave; steps per FMU."""
+    seconds, steps = {}, 0
     h = scenario.plant.communication_step_s
     for component, (inputs, start) in series.items():
         spec = getattr(scenario.plant, component)
@@ -126,9 +139,9 @@ def replay_fast(scenario, series) -> tuple[float, int]:
             begin = time.perf_counter()
             for k in range(len(matrix)):
                 slave.step(k * h, h, matrix[k])
-            total += time.perf_counter() - begin
+            seconds[component] = time.perf_counter() - begin
         steps = len(matrix)
-    return total, steps
+    return seconds, steps
 
 
 def replay_ecos(scenario, series, limit: int) -> float:
@@ -146,52 +159,136 @@ def replay_ecos(scenario, series, limit: int) -> float:
     return per_step
 
 
-def main() -> None:
-    if hasattr(os, "sched_setaffinity"):
-        os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
+SHARES = (("FMUs (replayed alone)", "fmus"), ("master (plant - FMUs)", "master"),
+          ("plant setup (servo design, FMU load)", "plant setup"), ("planner", "planner"),
+          ("reference sampling", "sampling"), ("logging", "logging"),
+          ("resume states (capture)", "resume states"), ("campaign, adaptation, other", "other"))
+
+
+def measure(ecos: bool) -> dict:
+    """One instrumented paper campaign of this process's tree: plain figures (s, us, bytes)."""
     scenario = load_scenario(SCENARIO)
+    h = scenario.plant.communication_step_s
     with tempfile.TemporaryDirectory() as folder:
         result, seconds, measurements = run_instrumented(scenario, Path(folder))
         log_bytes = (Path(folder) / "paper.mcap").stat().st_size
         states = read_run(Path(folder) / "paper.mcap").resume_states
-    simulated = sum(float(m.t_s[-1]) + scenario.plant.communication_step_s
-                    for m in measurements)
-    total = seconds["total"]
     series = recorded_inputs(scenario, measurements)
-    fmu_seconds, steps = replay_fast(scenario, series)
-    master = seconds["plant"] - fmu_seconds
-    other = total - sum(seconds[k] for k in ("plant", "planner", "logging", "plant setup",
-                                              "sampling", "resume states"))
-    print(f"paper-2020: {len(result.records)} periods, termination {result.termination}, "
+    per_fmu, steps = replay_fast(scenario, series)
+    figures = {key: seconds[key] for key in ("total", "plant", "plant setup", "planner",
+                                             "sampling", "logging", "resume states")}
+    figures["fmus"] = sum(per_fmu.values())
+    figures["master"] = seconds["plant"] - figures["fmus"]
+    figures["other"] = seconds["total"] - sum(seconds[k] for k in (
+        "plant", "planner", "logging", "plant setup", "sampling", "resume states"))
+    figures.update(
+        periods=len(result.records), termination=str(result.termination), steps=steps,
+        step_s=h, simulated=sum(float(m.t_s[-1]) + h for m in measurements),
+        log_bytes=log_bytes, state_bytes=float(np.mean([len(d) for d in states.values()])),
+        fmu_us={name: value / steps * 1e6 for name, value in per_fmu.items()})
+    if ecos:
+        try:
+            figures["ecos_us"] = replay_ecos(scenario, series, min(steps, 5000)) * 1e6
+        except Exception as error:  # ecospy is a test extra; say why it did not run
+            figures["ecos_error"] = f"{type(error).__name__}: {error}"
+    return figures
+
+
+def per_step_us(figures: dict) -> tuple[float, float, float]:
+    """(plant, FMUs alone, master) in us per communication step."""
+    steps = figures["steps"]
+    return (figures["plant"] / steps * 1e6, figures["fmus"] / steps * 1e6,
+            figures["master"] / steps * 1e6)
+
+
+def report(figures: dict) -> None:
+    total, simulated = figures["total"], figures["simulated"]
+    print(f"paper-2020: {figures['periods']} periods, termination {figures['termination']}, "
           f"{simulated:.1f} s simulated in {total:.2f} s wall: real-time factor "
           f"{simulated / total:.1f} (target >= {RTF_TARGET:g})")
-    print(f"  {steps} communication steps of {scenario.plant.communication_step_s * 1e3:g} ms, "
-          f"MCAP log {log_bytes / 1e6:.1f} MB, resume states "
-          f"{np.mean([len(d) for d in states.values()]) / 1e3:.1f} kB of JSON per period")
+    print(f"  {figures['steps']} communication steps of {figures['step_s'] * 1e3:g} ms, "
+          f"MCAP log {figures['log_bytes'] / 1e6:.1f} MB, resume states "
+          f"{figures['state_bytes'] / 1e3:.1f} kB of JSON per period")
     print("share of wall time:")
-    for label, value in (("FMUs (replayed alone)", fmu_seconds), ("master (plant - FMUs)", master),
-                         ("plant setup (servo design, FMU load)", seconds["plant setup"]),
-                         ("planner", seconds["planner"]),
-                         ("reference sampling", seconds["sampling"]),
-                         ("logging", seconds["logging"]),
-                         ("resume states (capture)", seconds["resume states"]),
-                         ("campaign, adaptation, other", other)):
-        print(f"  {label:38s} {value:7.3f} s  {100 * value / total:5.1f} %")
-    share = seconds["logging"] / total
+    for label, key in SHARES:
+        print(f"  {label:38s} {figures[key]:7.3f} s  {100 * figures[key] / total:5.1f} %")
+    share = figures["logging"] / total
     print(f"logging {100 * share:.1f} % of wall time (target <= {100 * LOG_SHARE_TARGET:g} %)")
-    ours = seconds["plant"] / steps * 1e6
-    fmus_only = fmu_seconds / steps * 1e6
+    ours, fmus_only, master = per_step_us(figures)
     print("per communication step, all four FMUs (3 cylinders, pile):")
     print(f"  excosim plant (master + FMUs)  {ours:7.1f} us")
-    print(f"  FMUs alone via FastSlave       {fmus_only:7.1f} us  -> master overhead "
-          f"{ours - fmus_only:.1f} us")
+    print(f"  FMUs alone via FastSlave       {fmus_only:7.1f} us  ("
+          + ", ".join(f"{name} {us:.1f}" for name, us in figures["fmu_us"].items())
+          + f") -> master overhead {master:.1f} us (target <= {MASTER_TARGET_US:g} us)")
+    print(f"  floor: the FMUs alone cap the real-time factor at "
+          f"{figures['step_s'] * 1e6 / fmus_only:.0f} (a master and log that cost nothing)")
+    if "ecos_us" in figures:
+        print(f"  ecos master (set/step/get)     {figures['ecos_us']:7.1f} us  -> overhead "
+              f"{figures['ecos_us'] - fmus_only:.1f} us (no coupling, no servos)")
+    elif "ecos_error" in figures:
+        print(f"  ecos master                    not run: {figures['ecos_error']}")
+
+
+def measured_in(tree: Path) -> dict:
+    """measure() of `tree`'s code in a fresh process (this script's code, the tree's package)."""
+    done = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--tree", str(tree),
+                           "--json"], capture_output=True, text=True, cwd=tree, check=False)
+    if done.returncode != 0:
+        last = (done.stderr.strip().splitlines() or ["no output"])[-1]
+        raise RuntimeError(f"the run in {tree.name} failed: {last}")
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def side_by_side(revision: str, pairs: int) -> None:
+    """Both trees measured alternately `pairs` times; each one's median printed."""
     try:
-        ecos = replay_ecos(scenario, series, min(steps, 5000)) * 1e6
-    except Exception as error:  # ecospy is a test extra; say why it did not run
-        print(f"  ecos master                    not run: {type(error).__name__}: {error}")
-    else:
-        print(f"  ecos master (set/step/get)     {ecos:7.1f} us  -> overhead "
-              f"{ecos - fmus_only:.1f} us (no coupling, no servos)")
+        commit = subprocess.run(["git", "-C", str(HERE), "rev-parse", "--short", revision],
+                                capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        print(f"side by side: {revision!r} is no commit of this checkout; not run")
+        return
+    with tempfile.TemporaryDirectory(prefix="excosim-bench-") as folder:
+        worktree = Path(folder) / commit
+        subprocess.run(["git", "-C", str(HERE), "worktree", "add", "--detach", "--quiet",
+                        str(worktree), commit], check=True)
+        runs: dict[str, list[dict]] = {"this tree": [], commit: []}
+        try:
+            for _ in range(pairs):
+                runs[commit].append(measured_in(worktree))
+                runs["this tree"].append(measured_in(HERE))
+        except RuntimeError as error:
+            print(f"side by side with {commit}: not comparable ({error})")
+            return
+        finally:
+            subprocess.run(["git", "-C", str(HERE), "worktree", "remove", "--force",
+                            str(worktree)], check=False)
+    print(f"side by side, median of {pairs} alternate runs each, fresh processes:")
+    print(f"  {'':10s} {'RTF':>7s} {'plant us':>9s} {'FMUs us':>8s} {'master us':>10s} "
+          f"{'logging':>8s} {'floor RTF':>10s}")
+    for name, figures in runs.items():
+        rtf = np.median([f["simulated"] / f["total"] for f in figures])
+        plant, fmus_only, master = np.median([per_step_us(f) for f in figures], axis=0)
+        logging = np.median([f["logging"] / f["total"] for f in figures])
+        print(f"  {name:10s} {rtf:7.1f} {plant:9.1f} {fmus_only:8.1f} {master:10.1f} "
+              f"{100 * logging:7.1f}% {figures[0]['step_s'] * 1e6 / fmus_only:10.0f}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--against", default="HEAD~1",
+                        help="the commit measured side by side (none: skip)")
+    parser.add_argument("--pairs", type=int, default=2, help="alternate runs of each tree")
+    parser.add_argument("--tree", help=argparse.SUPPRESS)
+    parser.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
+    arguments = parser.parse_args()
+    if hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
+    if arguments.json:
+        print(json.dumps(measure(ecos=False)))
+        return
+    report(measure(ecos=True))
+    if arguments.against != "none" and arguments.pairs > 0:
+        side_by_side(arguments.against, arguments.pairs)
 
 
 if __name__ == "__main__":
