@@ -3,8 +3,10 @@
     python bench/fmu_step.py
 
 Paths (each sets the inputs, steps once, reads every Real output, per step):
-  fmpy fast      raw ctypes fmi2SetReal/fmi2DoStep/fmi2GetReal with pre-allocated arrays
-                 (fmus.runs.FastSlave, what a Python master should use)
+  fmpy fast      the FMU's fmi2SetReal/fmi2DoStep/fmi2GetReal with pre-allocated arrays in
+                 one foreign call (fmus.runs.FastSlave through fmus/fast_step/fmi2_step.c,
+                 what a Python master should use)
+  3 calls        the same three entry points as three ctypes calls (FastSlave.one_call off)
   fmi3 fast      the same for the model's FMI 3.0 build: fmi3SetFloat64/fmi3DoStep/
                  fmi3GetFloat64 (FastSlave on fmus.build(name, fmi_version=3))
   fmpy doStep    the raw fmi2DoStep alone: model compute plus one ctypes call
@@ -74,6 +76,15 @@ def bench_fmpy(fmu: Path, inputs: dict, outputs: list[str], n: int) -> dict[str,
         for k in range(n, 2 * n):
             do_step(component, k * STEP, STEP, 1)
         figures["fmpy doStep"] = per_step_us(time.perf_counter() - begin, n)
+    FastSlave.one_call = False
+    try:
+        with FastSlave(fmu, list(inputs), outputs, start) as slave:
+            begin = time.perf_counter()
+            for k in range(n):
+                slave.step(k * STEP, STEP, matrix[k])
+            figures["3 calls"] = per_step_us(time.perf_counter() - begin, n)
+    finally:
+        FastSlave.one_call = True
     variables = {v.name: v.valueReference for v in read_description(fmu).modelVariables}
     vr_in = [variables[name] for name in inputs]
     vr_out = [variables[name] for name in outputs]
@@ -129,7 +140,8 @@ def bench_ecos(fmu: Path, inputs: dict, outputs: list[str], n: int) -> dict[str,
 def main() -> None:
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
-    columns = ["fmpy fast", "fmi3 fast", "fmpy doStep", "fmpy high", "ecos", "ecos step(n)"]
+    columns = ["fmpy fast", "3 calls", "fmi3 fast", "fmpy doStep", "fmpy high", "ecos",
+               "ecos step(n)"]
     print(f"us per step (communication step {STEP * 1e3:g} ms; set inputs, step, get outputs)")
     print(f"{'model':<20}{'in/out':>8}" + "".join(f"{c:>14}" for c in columns))
     for name, fmu in fmus.build_all().items():

@@ -61,6 +61,16 @@ class LoadSensingPump:
         if not self.margin_pa < self.cutoff_pa:
             raise ValueError("LoadSensingPump.margin_pa must be below cutoff_pa")
 
+    def law_parameters(self, models: Sequence[CylinderModel | None]
+                       ) -> tuple[tuple[float | None, ...], float, float, float]:
+        """What `law` computes with, for a second implementation of it (the master's C
+        coupling): per section its flow at the full margin q_i sqrt(margin / dp_i) (m^3/s;
+        None off the pump), the pump's Q_max (m^3/s), its margin and the LS limiter's ceiling
+        cutoff - margin (Pa)."""
+        fulls = tuple(None if m is None else m.rated_flow_m3_s
+                      * math.sqrt(self.margin_pa / m.rated_pressure_drop_pa) for m in models)
+        return fulls, self.max_flow_m3_s, self.margin_pa, self.cutoff_pa - self.margin_pa
+
     def law(self, models: Sequence[CylinderModel | None]) -> SupplyLaw:
         """The per-step law of boom, stick and bucket (models: their rated flows and drops;
         None for a section not on this pump, whose command and pressures then never count):
@@ -70,12 +80,7 @@ class LoadSensingPump:
         pressure of the open sections (p_A extending, p_B retracting), at most cutoff - margin
         (the LS pressure limiter), and p_pump = p_LS + margin s^2 (see the module docstring).
         Scalar math: it runs once per communication step."""
-        full0, full1, full2 = (
-            None if m is None else m.rated_flow_m3_s * math.sqrt(self.margin_pa
-                                                                 / m.rated_pressure_drop_pa)
-            for m in models)
-        q_max, margin = self.max_flow_m3_s, self.margin_pa
-        ceiling = self.cutoff_pa - margin
+        (full0, full1, full2), q_max, margin, ceiling = self.law_parameters(models)
 
         def law(u0, u1, u2, pa0, pb0, pa1, pb1, pa2, pb2):
             p_ls, demand = 0.0, 0.0

@@ -17,6 +17,9 @@ One communication step h from t_k (the reference is interpolated onto the grid t
    supply it models itself); the cylinders step from t_k to t_k + h with command, load and
    supply held.
 
+Steps 1-3 run in C (orchestrator.plants.native) where it can serve, else in Python
+(orchestrator.plants.coupling_loop), with the same bits; the FMUs are stepped from Python.
+
 At the end of a period the load cell reads the Pile's bucket mass (plus Gaussian noise from one
 generator seeded per plant), then the Pile steps once more with `dump` high and the bucket
 empties; the profile h[1..n] and the cell centres go into the measurement. The next period
@@ -45,8 +48,11 @@ import numpy as np
 
 from orchestrator.plants.arm_coupling import ArmCoupling
 from orchestrator.plants.arm_dynamics import ArmInertia
+from orchestrator.plants.coupling_loop import PythonCoupling
 from orchestrator.plants.identify import CylinderIdentification
 from orchestrator.plants.master import Master, check_component, port_conversions
+from orchestrator.plants.native import NativeCoupling
+from orchestrator.plants.native import unavailable as native_unavailable
 from orchestrator.plants.plant_state import ResumableState
 from orchestrator.plants.servo_setup import (
     design_servo_cached,
@@ -80,6 +86,9 @@ class SimulatedExcavator(ResumableState):
     resume_state() / restore_state() save and restore what carries across periods."""
 
     kind = "sim"
+    # The per-step coupling in C (orchestrator.plants.native) where it can serve; False: the
+    # Python loop (orchestrator.plants.coupling_loop), e.g. to compare the two.
+    native_coupling = True
 
     def __init__(self, config: SimulatedExcavatorConfig) -> None:
         self.config = config
@@ -153,6 +162,7 @@ class SimulatedExcavator(ResumableState):
             tuple(identifications)
         # (u0, u1, u2, p_A0, p_B0, ...) -> (p_pump, p_LS, sharing), None: constant supply.
         self._supply_law = pump.law(supplied) if pump is not None else None
+        self._supply_parameters = None if pump is None else pump.law_parameters(supplied)
         self._columns = _COLUMNS + (_SUPPLY_COLUMNS if pump is not None else ())
         pile_description = fmu_description("pile", config.pile)
         check_component("pile", "pile", config.pile, pile_description)
@@ -196,8 +206,20 @@ class SimulatedExcavator(ResumableState):
         self._start_pose = tuple(float(angle) for angle in pose)
         self._servos = tuple(JointServo(d) if isinstance(d, ServoDesign) else LinearJointServo(d)
                              for d in self.servo_designs)
+        self._loop = self._step_loop()
         profile, grid = self._profile()
         self._initial_surface = None if profile is None or grid is None else (grid, profile)
+
+    def _step_loop(self) -> NativeCoupling | PythonCoupling:
+        """The step loop: in C unless `native_coupling` is off or it cannot serve (why:
+        `step_loop_note`)."""
+        self.step_loop_note = native_unavailable(self._servos) if self.native_coupling \
+            else "native_coupling is off"
+        if self.step_loop_note is None:
+            return NativeCoupling(self._master, self.coupling, self.inertia, self._servos,
+                                  self._supply_parameters, self.config.communication_step_s)
+        return PythonCoupling(self._master, self.coupling, self.inertia, self._servos,
+                              self._supply_law, self.config.communication_step_s)
 
     def temporary_folders(self) -> list[str]:
         """The folders the FMUs are extracted into (removed by close()); for a clean-up that
@@ -247,12 +269,13 @@ class SimulatedExcavator(ResumableState):
                 f"{JOINT_NAMES[worst]} angle ({math.degrees(now[worst]):.2f} deg); allowed: "
                 f"{math.degrees(self.config.start_tolerance_rad):.2f} deg")
         stroke_ref = self.coupling.stroke_reference(position, velocity, acceleration)
-        rows, joints = self._track(*stroke_ref)
-        held = self._settle(position[-1], stroke_ref[0][-1], rows, joints)
-        if held:
+        chunks = [self._track(*stroke_ref)] + self._settle(position[-1], stroke_ref[0][-1])
+        table = np.concatenate([rows for rows, _ in chunks])
+        joints = np.concatenate([angles for _, angles in chunks])
+        if len(table) > len(position):  # the held samples: the reference's last pose
+            held = len(table) - len(position)
             position = np.vstack([position, np.repeat(position[-1:], held, axis=0)])
             t = np.arange(len(position)) * self.config.communication_step_s
-        table = np.array(rows)
         signals = {name: table[:, i].copy() for i, name in enumerate(self._columns)}
         for joint in JOINT_NAMES:  # an FMU without e.g. chamber pressures measured none
             for port in self._master[joint].missing_outputs:
@@ -261,7 +284,7 @@ class SimulatedExcavator(ResumableState):
         weighed += self.config.load_cell_noise_kg * float(self._rng.standard_normal())
         self._dump()
         profile, grid = self._profile()
-        return PeriodMeasurement(t_s=t, joints_rad=np.array(joints), reference_rad=position,
+        return PeriodMeasurement(t_s=t, joints_rad=joints, reference_rad=position,
                                  weighed_mass_kg=weighed, signals=signals,
                                  pile_profile_m=profile, pile_grid_m=grid)
 
@@ -283,94 +306,32 @@ class SimulatedExcavator(ResumableState):
         return (*on_grid, t)
 
     def _track(self, strokes: np.ndarray, rates: np.ndarray, accelerations: np.ndarray):
-        """The step loop of one period; returns the signal rows and the joint angles."""
-        master, h = self._master, self.config.communication_step_s
-        boom, stick, bucket, pile = (master[n] for n in (*JOINT_NAMES, "pile"))
-        boom_out, stick_out, bucket_out, pile_out = (
-            c.outputs for c in (boom, stick, bucket, pile))
-        boom_in, stick_in, bucket_in, pile_in = (c.inputs for c in (boom, stick, bucket, pile))
-        boom_step, stick_step, bucket_step, pile_step = (
-            c.step for c in (boom, stick, bucket, pile))
-        kinematics, loads = self.coupling.kinematics, self.coupling.loads
-        inertia = self.inertia.at_pose
-        command0, command1, command2 = (s.command for s in self._servos)
-        supply = self._supply_law
-        x0r, x1r, x2r = (strokes[:, j].tolist() for j in range(3))
-        v0r, v1r, v2r = (rates[:, j].tolist() for j in range(3))
-        a0r, a1r, a2r = (accelerations[:, j].tolist() for j in range(3))
-        rows, joints = [], []
-        append_row, append_joints = rows.append, joints.append
-        pile_in[pile.input_index["dump"]] = 0.0
-        steps, pile_time = self._steps, self._pile_time
+        """The step loop of one stroke reference (each (n, 3)): signal rows (n, columns) and
+        joint angles (n, 3), in C where it can (orchestrator.plants.native), else in Python
+        (orchestrator.plants.coupling_loop): the same bits either way."""
+        pile = self._master["pile"]
+        pile.inputs[pile.input_index["dump"]] = 0.0
         try:
-            for k in range(len(x0r)):
-                x0, v0, pa0, pb0, f0 = boom_out.tolist()
-                x1, v1, pa1, pb1, f1 = stick_out.tolist()
-                x2, v2, pa2, pb2, f2 = bucket_out.tolist()
-                pose = kinematics(x0, x1, x2)
-                q0, q1, q2, tip_y, tip_z, angle = pose[:6]
-                pile_in[0] = tip_y
-                pile_in[1] = tip_z
-                pile_in[2] = -angle  # the Pile's bucket_angle: tip-to-pin line (geometry)
-                pile_step(pile_time, h)
-                pile_time += h
-                mass, force_y, force_z, removed, dumped, in_pile, surface = pile_out.tolist()
-                e0, e1, e2 = loads(pose, force_y, force_z, mass)
-                # The arm's inertia (orchestrator.plants.arm_dynamics): the diagonal reflected
-                # into each FMU's mass_load, the rest into F_ext: velocity products from this
-                # step's rates, the cross terms from the planned joint accelerations.
-                r0, r1, r2 = pose[6:9]
-                w0, w1, w2 = v0 / r0, v1 / r1, v2 / r2
-                m00, m11, m22, m01, m02, m12, h0, h1, h2 = inertia(pose, w0, w1, w2, mass)
-                d0, d1, d2 = pose[21:24]
-                a0 = (a0r[k] - d0 * (v0r[k] / r0) ** 2) / r0
-                a1 = (a1r[k] - d1 * (v1r[k] / r1) ** 2) / r1
-                a2 = (a2r[k] - d2 * (v2r[k] / r2) ** 2) / r2
-                e0 += (m01 * a1 + m02 * a2 + h0) / r0 - m00 * d0 * w0 * w0 / (r0 * r0)
-                e1 += (m01 * a0 + m12 * a2 + h1) / r1 - m11 * d1 * w1 * w1 / (r1 * r1)
-                e2 += (m02 * a0 + m12 * a1 + h2) / r2 - m22 * d2 * w2 * w2 / (r2 * r2)
-                u0 = command0(x0r[k], v0r[k], a0r[k], x0, f0)
-                u1 = command1(x1r[k], v1r[k], a1r[k], x1, f1)
-                u2 = command2(x2r[k], v2r[k], a2r[k], x2, f2)
-                append_joints((q0, q1, q2))
-                l0, l1, l2 = m00 / (r0 * r0), m11 / (r1 * r1), m22 / (r2 * r2)
-                row = (x0, v0, pa0, pb0, f0, u0, e0, l0, x1, v1, pa1, pb1, f1, u1, e1, l1,
-                       x2, v2, pa2, pb2, f2, u2, e2, l2, mass, force_y, force_z, removed,
-                       dumped, in_pile, surface, tip_y, tip_z, angle)
-                if supply is not None:
-                    p_pump, p_ls, sharing = supply(u0, u1, u2, pa0, pb0, pa1, pb1, pa2, pb2)
-                    boom_in[3] = stick_in[3] = bucket_in[3] = p_pump
-                    boom_in[4] = stick_in[4] = bucket_in[4] = p_ls
-                    row += (p_pump, p_ls, sharing)
-                append_row(row)
-                boom_in[0], boom_in[1], boom_in[2] = u0, e0, l0
-                stick_in[0], stick_in[1], stick_in[2] = u1, e1, l1
-                bucket_in[0], bucket_in[1], bucket_in[2] = u2, e2, l2
-                t = steps * h
-                boom_step(t, h)
-                stick_step(t, h)
-                bucket_step(t, h)
-                steps += 1
+            rows, joints, _, _ = self._loop.track(strokes, rates, accelerations,
+                                                  len(self._columns), self._steps,
+                                                  self._pile_time)
         finally:
-            self._steps, self._pile_time = steps, pile_time
+            self._steps, self._pile_time = self._loop.clock
         return rows, joints
 
-    def _settle(self, pose_rad: np.ndarray, stroke_m: np.ndarray, rows: list,
-                joints: list) -> int:
+    def _settle(self, pose_rad: np.ndarray, stroke_m: np.ndarray) -> list:
         """Hold the strokes `stroke_m` (3,) of the reference's last pose `pose_rad` (3,) while
         the arm is further than half the start tolerance from it, at most SETTLE_MAX_S, in
-        steps of SETTLE_CHUNK; the samples go on `rows` and `joints`. Returns the steps held."""
+        steps of SETTLE_CHUNK. Returns the held chunks, (rows, joints) each."""
         h = self.config.communication_step_s
         limit, tolerance = round(SETTLE_MAX_S / h), 0.5 * self.config.start_tolerance_rad
         still = np.zeros((SETTLE_CHUNK, 3))
-        held = 0
-        while held < limit and np.max(np.abs(self.joints_rad() - pose_rad)) > tolerance:
-            n = min(SETTLE_CHUNK, limit - held)
-            more_rows, more_joints = self._track(np.repeat(stroke_m[None, :], n, axis=0),
-                                                 still[:n], still[:n])
-            rows += more_rows
-            joints += more_joints
-            held += n
+        held: list = []
+        while len(held) * SETTLE_CHUNK < limit \
+                and np.max(np.abs(self.joints_rad() - pose_rad)) > tolerance:
+            n = min(SETTLE_CHUNK, limit - len(held) * SETTLE_CHUNK)
+            held.append(self._track(np.repeat(stroke_m[None, :], n, axis=0), still[:n],
+                                    still[:n]))
         return held
 
     def _dump(self) -> None:

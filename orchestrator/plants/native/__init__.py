@@ -1,0 +1,195 @@
+"""The simulated excavator's per-step coupling in C (coupling.c), bound with ctypes.
+
+`NativeCoupling(...)` packs what the plant's Python loop reads per step (the arm coupling's
+stroke tables and geometry, the arm inertia, the servos' constants and filter states, the
+pump's law) into coupling.c's struct once; `track(strokes, rates, accelerations, ...)` then
+runs a period's steps: per step one call before the Pile's step and one after it, the four FMU
+steps in Python between them as before. It gives the same bits as the Python loop
+(orchestrator.plants.simulated_excavator; tests/test_native_coupling.py).
+
+`unavailable(servos)` says why the C coupling cannot serve (one line), None when it can: it
+needs gcc (the library is built on first use and cached like the FMUs: fmus.shared_library)
+and servos that are plant_models.servo.JointServo (the linear servo runs in Python).
+"""
+
+from __future__ import annotations
+
+import ctypes
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from plant_models.geometry import GRAVITY_M_S2
+from plant_models.servo import JointServo
+
+_DOUBLE_P = ctypes.POINTER(ctypes.c_double)
+
+
+class _Table(ctypes.Structure):
+    _fields_ = [(name, _DOUBLE_P) for name in ("angle", "c1", "c2", "c3", "arm", "arm_slope")] \
+        + [("inv_dx", ctypes.c_double), ("intervals", ctypes.c_long)]
+
+
+class _Servo(ctypes.Structure):
+    _fields_ = [(name, ctypes.c_double) for name in (
+        "kp", "kf", "keep", "gain", "mass", "extend", "retract", "least", "per_reserve_extend",
+        "per_reserve_retract")] + [
+        ("metered", ctypes.c_double * 2), ("pull", ctypes.c_double * 2),
+        ("p_tank", ctypes.c_double), ("areas", ctypes.c_double * 2),
+        ("compensated", ctypes.c_long), ("filtered", ctypes.c_double),
+        ("last", ctypes.c_double), ("has_last", ctypes.c_long)]
+
+
+class _Coupling(ctypes.Structure):
+    _fields_ = [
+        ("cylinder_out", _DOUBLE_P * 3), ("cylinder_in", _DOUBLE_P * 3),
+        ("pile_out", _DOUBLE_P), ("pile_in", _DOUBLE_P),
+        ("x_ref", _DOUBLE_P), ("v_ref", _DOUBLE_P), ("a_ref", _DOUBLE_P),
+        ("rows", _DOUBLE_P), ("joints", _DOUBLE_P),
+        ("n", ctypes.c_long), ("k", ctypes.c_long), ("n_columns", ctypes.c_long),
+        ("table", _Table * 3),
+        ("lengths", ctypes.c_double * 3), ("foot", ctypes.c_double * 2),
+        ("weights", ctypes.c_double * 3), ("coms", (ctypes.c_double * 2) * 3),
+        ("masses", ctypes.c_double * 3), ("gravity", ctypes.c_double),
+        ("servo", _Servo * 3),
+        ("supplied", ctypes.c_long), ("full", ctypes.c_double * 3),
+        ("q_max", ctypes.c_double), ("margin", ctypes.c_double), ("ceiling", ctypes.c_double),
+        ("pose", ctypes.c_double * 30),
+    ]
+
+
+@lru_cache(maxsize=1)
+def _library() -> ctypes.CDLL | str:
+    """The built library, or why it cannot be had (one line)."""
+    from fmus.builder import BuildError
+    from fmus.shared_library import build_library
+
+    try:
+        path = build_library("coupling", Path(__file__).resolve().parent, ("coupling.c",))
+    except BuildError as error:
+        return str(error).splitlines()[0]
+    library = ctypes.CDLL(str(path))
+    if library.coupling_size() != ctypes.sizeof(_Coupling):
+        return "coupling.c's struct and its binding disagree (rebuild the library)"
+    for name in ("coupling_before_pile", "coupling_after_pile"):
+        # No argtypes: ctypes then passes the pre-built pointer object as it is (FastSlave).
+        getattr(library, name).restype = None
+    return library
+
+
+def unavailable(servos) -> str | None:
+    """Why the C coupling cannot step a plant with these servos (one line), None if it can."""
+    if not all(type(servo) is JointServo for servo in servos):
+        return "a servo is not plant_models.servo.JointServo (the linear servo runs in Python)"
+    library = _library()
+    return library if isinstance(library, str) else None
+
+
+def _pointer(array: np.ndarray):
+    return array.ctypes.data_as(_DOUBLE_P)
+
+
+class NativeCoupling:
+    """coupling.c's struct for one plant (see the module docstring): its FMUs (an
+    orchestrator.plants.master.Master with components boom, stick, bucket, pile), its
+    ArmCoupling and ArmInertia, its three JointServos and the pump's
+    LoadSensingPump.law_parameters (None: each valve on its own supply)."""
+
+    def __init__(self, master, coupling, inertia, servos, supply_parameters,
+                 step_s: float) -> None:
+        self._library = _library()
+        self._master, self._servos, self._step_s = master, tuple(servos), float(step_s)
+        c = _Coupling()
+        cylinders = [master[j] for j in ("boom", "stick", "bucket")]
+        pile = master["pile"]
+        self._keep = [component.outputs for component in cylinders] \
+            + [component.inputs for component in cylinders] + [pile.outputs, pile.inputs]
+        for i, component in enumerate(cylinders):
+            c.cylinder_out[i] = _pointer(component.outputs)
+            c.cylinder_in[i] = _pointer(component.inputs)
+        c.pile_out, c.pile_in = _pointer(pile.outputs), _pointer(pile.inputs)
+        for i, table in enumerate(coupling.tables):
+            arrays = [np.array(getattr(table, name), dtype=float) for name in (
+                "angle", "c1", "c2", "c3", "arm", "arm_slope")]
+            self._keep += arrays
+            c.table[i] = _Table(*[_pointer(a) for a in arrays], table.inv_dx, len(table.c1))
+        if coupling._coms != inertia._coms or coupling._lengths != inertia._lengths:
+            raise ValueError("the arm coupling and the arm inertia describe different arms")
+        c.lengths[:] = coupling._lengths
+        c.foot[:] = coupling._foot
+        c.weights[:] = coupling._weights
+        for i, com in enumerate(coupling._coms):
+            c.coms[i][:] = com
+        c.masses[:] = inertia._masses
+        c.gravity = GRAVITY_M_S2
+        for i, servo in enumerate(self._servos):
+            _servo_into(servo, c.servo[i])
+        c.supplied = supply_parameters is not None
+        if supply_parameters is not None:
+            fulls, c.q_max, c.margin, c.ceiling = supply_parameters
+            c.full[:] = [-1.0 if full is None else full for full in fulls]
+        self._c = c
+        self.clock: tuple[int, float] = (0, 0.0)
+        """(steps, Pile time s) where the last track() ended, an FMU error included."""
+        address = ctypes.addressof(c)
+        self._before = _bound(self._library.coupling_before_pile, address)
+        self._after = _bound(self._library.coupling_after_pile, address)
+
+    def track(self, strokes: np.ndarray, rates: np.ndarray, accelerations: np.ndarray,
+              n_columns: int, steps: int, pile_time: float) -> tuple[np.ndarray, np.ndarray,
+                                                                     int, float]:
+        """The steps of one stroke reference (each (n, 3): m, m/s, m/s^2) from the plant's
+        step count and Pile time (s): returns the signal rows (n, n_columns), the joint angles
+        (n, 3) rad, and the step count and Pile time after them. An FMU's error propagates;
+        `clock` then holds the count and time reached, and the servos' filter states are
+        those of the last step the coupling computed (as in the Python loop)."""
+        c = self._c
+        references = [np.ascontiguousarray(a, dtype=float) for a in (strokes, rates,
+                                                                    accelerations)]
+        n = len(references[0])
+        rows, joints = np.empty((n, n_columns)), np.empty((n, 3))
+        c.x_ref, c.v_ref, c.a_ref = (_pointer(a) for a in references)
+        c.rows, c.joints, c.n, c.k, c.n_columns = _pointer(rows), _pointer(joints), n, 0, \
+            n_columns
+        for i, servo in enumerate(self._servos):
+            filtered, last = servo.state()
+            c.servo[i].filtered, c.servo[i].has_last = filtered, last is not None
+            c.servo[i].last = 0.0 if last is None else last
+        master, h = self._master, self._step_s
+        boom, stick, bucket, pile = (master[n].step for n in ("boom", "stick", "bucket", "pile"))
+        before, after = self._before, self._after
+        try:
+            for _ in range(n):
+                before()
+                pile(pile_time, h)
+                pile_time += h
+                after()
+                t = steps * h
+                boom(t, h)
+                stick(t, h)
+                bucket(t, h)
+                steps += 1
+        finally:
+            for i, servo in enumerate(self._servos):
+                state = c.servo[i]
+                servo.set_state(state.filtered, state.last if state.has_last else None)
+            self.clock = steps, pile_time
+        return rows, joints, steps, pile_time
+
+
+def _servo_into(servo: JointServo, out: _Servo) -> None:
+    """JointServo's constants (its __slots__) into coupling.c's Servo."""
+    for name in ("kp", "kf", "keep", "gain", "mass", "extend", "retract", "least",
+                 "per_reserve_extend", "per_reserve_retract", "p_tank"):
+        setattr(out, name, getattr(servo, f"_{name}"))
+    out.metered[:], out.pull[:], out.areas[:] = servo._metered, servo._pull, servo._areas
+    out.compensated = bool(servo._compensated)
+
+
+def _bound(function, address: int):
+    """function(struct) with the pointer converted once (ctypes' argument conversion costs
+    more than the call)."""
+    import functools
+
+    return functools.partial(function, ctypes.c_void_p(address))

@@ -1,0 +1,284 @@
+/*
+ * The simulated excavator's per-step coupling in C: what orchestrator.plants.simulated_excavator
+ * computes between the FMU steps of one communication step, operation for operation as its
+ * Python loop (_track_python) does, so both give the same bits (IEEE doubles, no fused
+ * multiply-add, the same libm calls):
+ *
+ *   before_pile: the cylinders' strokes -> joint angles, moment arms, tip and bucket angle
+ *     (orchestrator.plants.arm_coupling: the Hermite tables and the forward kinematics) -> the
+ *     Pile's inputs;
+ *   after_pile: the Pile's outputs -> cylinder loads (gravity, soil force), the arm's inertia
+ *     (orchestrator.plants.arm_dynamics: the diagonal into mass_load, the rest into F_ext), the
+ *     servos' spool commands (plant_models.servo.JointServo.command), the load-sensing pump's
+ *     p_pump and p_LS (plant_models.supply.LoadSensingPump.law) -> the cylinders' inputs, and
+ *     the step's row of signals and joint angles.
+ *
+ * The FMUs themselves are stepped by the Python loop between the two calls, through the same
+ * entry points as always (fmus.runs.FastSlave): their errors, the step watchdog and the crash
+ * reports name the FMU as before. Units: SI (m, rad, N, kg, Pa, s).
+ */
+#include <math.h>
+
+#define EXPORT __attribute__((visibility("default")))
+
+/* Python's x ** 2 calls libm's pow, which need not round as x * x does; gcc would turn a direct
+ * pow(x, 2.0) into x * x, so the call goes through a pointer it cannot see through. */
+static double (*volatile power)(double, double) = pow;
+
+typedef struct {
+    const double *angle, *c1, *c2, *c3, *arm, *arm_slope; /* per interval (arm: per node) */
+    double inv_dx;                                        /* intervals per metre of stroke */
+    long intervals;
+} Table;
+
+typedef struct {
+    double kp, kf, keep, gain, mass, extend, retract, least, per_reserve_extend;
+    double per_reserve_retract, metered[2], pull[2], p_tank, areas[2];
+    long compensated;
+    double filtered, last; /* the filter's state; has_last = 0: no sample yet */
+    long has_last;
+} Servo;
+
+typedef struct {
+    /* buffers of the FMU components, role order (orchestrator.plants.master.Component) */
+    const double *cylinder_out[3]; /* x, v, p_A, p_B, F */
+    double *cylinder_in[3];        /* u, F_ext, mass_load, p_pump, p_LS */
+    const double *pile_out;        /* bucket_mass, F_y, F_z, removed, dumped, pile, surface */
+    double *pile_in;               /* tip_y, tip_z, bucket_angle, dump */
+    /* the stroke reference per step, (n, 3) each, and what the steps produce */
+    const double *x_ref, *v_ref, *a_ref;
+    double *rows;   /* (n, n_columns): the signal columns of simulated_excavator */
+    double *joints; /* (n, 3) rad */
+    long n, k, n_columns;
+    Table table[3];
+    double lengths[3], foot[2], weights[3], coms[3][2], masses[3], gravity;
+    Servo servo[3];
+    long supplied;              /* 1: the load-sensing pump feeds the sections */
+    double full[3];             /* a section's flow at the full margin, m^3/s; < 0: off pump */
+    double q_max, margin, ceiling;
+    double pose[30]; /* scratch: ArmCoupling.kinematics of this step */
+} Coupling;
+
+/* ArmCoupling._joint: angle, arm and d(arm)/d(angle) at a stroke. */
+static void joint(const Table *table, double stroke, double *out) {
+    double position = stroke * table->inv_dx, fraction, t, arm;
+    long i = (long)position;
+    i = i < 0 ? 0 : (i >= table->intervals ? table->intervals - 1 : i);
+    fraction = position - (double)i;
+    t = fraction < 0.0 ? 0.0 : (fraction > 1.0 ? 1.0 : fraction);
+    arm = table->arm[i] + table->arm_slope[i] * t;
+    out[0] = table->angle[i] + t * (table->c1[i] + t * (table->c2[i] + t * table->c3[i]));
+    out[1] = arm;
+    out[2] = table->arm_slope[i] * table->inv_dx * arm;
+}
+
+/* ArmCoupling.kinematics into c->pose, the same order. */
+static void kinematics(Coupling *c, double x0, double x1, double x2) {
+    double j0[3], j1[3], j2[3], *p = c->pose;
+    double l1 = c->lengths[0], l2 = c->lengths[1], l3 = c->lengths[2];
+    double foot_y = c->foot[0], foot_z = c->foot[1], phi2, phi3, c1, s1, c2, s2, c3, s3;
+    double stick_y, stick_z, pin_y, pin_z, tip_y, tip_z, com1, com2, com3;
+    double w1 = c->weights[0], w2 = c->weights[1], w3 = c->weights[2];
+    joint(&c->table[0], x0, j0);
+    joint(&c->table[1], x1, j1);
+    joint(&c->table[2], x2, j2);
+    phi2 = j0[0] + j1[0];
+    phi3 = phi2 + j2[0];
+    c1 = cos(j0[0]);
+    s1 = sin(j0[0]);
+    c2 = cos(phi2);
+    s2 = sin(phi2);
+    c3 = cos(phi3);
+    s3 = sin(phi3);
+    stick_y = foot_y - l1 * c1;
+    stick_z = foot_z + l1 * s1;
+    pin_y = stick_y - l2 * c2;
+    pin_z = stick_z + l2 * s2;
+    tip_y = pin_y - l3 * c3;
+    tip_z = pin_z + l3 * s3;
+    com1 = foot_y - c->coms[0][0] * c1 + c->coms[0][1] * s1;
+    com2 = stick_y - c->coms[1][0] * c2 + c->coms[1][1] * s2;
+    com3 = pin_y - c->coms[2][0] * c3 + c->coms[2][1] * s3;
+    p[0] = j0[0], p[1] = j1[0], p[2] = j2[0], p[3] = tip_y, p[4] = tip_z, p[5] = phi3;
+    p[6] = j0[1], p[7] = j1[1], p[8] = j2[1];
+    p[9] = w1 * (foot_y - com1) + w2 * (foot_y - com2) + w3 * (foot_y - com3);
+    p[10] = w2 * (stick_y - com2) + w3 * (stick_y - com3);
+    p[11] = w3 * (pin_y - com3);
+    p[12] = c->gravity * (foot_y - com3);
+    p[13] = c->gravity * (stick_y - com3);
+    p[14] = c->gravity * (pin_y - com3);
+    p[15] = tip_y - foot_y, p[16] = tip_z - foot_z, p[17] = tip_y - stick_y;
+    p[18] = tip_z - stick_z, p[19] = tip_y - pin_y, p[20] = tip_z - pin_z;
+    p[21] = j0[2], p[22] = j1[2], p[23] = j2[2];
+    p[24] = c1, p[25] = s1, p[26] = c2, p[27] = s2, p[28] = c3, p[29] = s3;
+}
+
+/* ArmInertia._at: M00, M11, M22, M01, M02, M12, h0, h1, h2 into out. */
+static void inertia(const Coupling *c, double w0, double w1, double w2, double payload,
+                    double *out) {
+    const double *p = c->pose;
+    double c1 = p[24], s1 = p[25], c2 = p[26], s2 = p[27], c3 = p[28], s3 = p[29];
+    double m1 = c->masses[0], m2 = c->masses[1], m3 = c->masses[2] + payload;
+    double l1 = c->lengths[0], l2 = c->lengths[1], l3 = c->lengths[2];
+    double u1 = c->coms[0][0], v1 = c->coms[0][1], u2 = c->coms[1][0], v2 = c->coms[1][1];
+    double u3 = c->coms[2][0], v3 = c->coms[2][1];
+    double g1y = u1 * s1 + v1 * c1, g1z = u1 * c1 - v1 * s1;
+    double g2y = u2 * s2 + v2 * c2, g2z = u2 * c2 - v2 * s2;
+    double g3y = u3 * s3 + v3 * c3, g3z = u3 * c3 - v3 * s3;
+    double a1y = l1 * s1, a1z = l1 * c1, a2y = l2 * s2, a2z = l2 * c2;
+    double i1 = m1 * l1 * l1 / 12.0, i2 = m2 * l2 * l2 / 12.0, i3 = m3 * l3 * l3 / 12.0;
+    double n11 = m1 * (g1y * g1y + g1z * g1z) + (m2 + m3) * (a1y * a1y + a1z * a1z) + i1;
+    double n22 = m2 * (g2y * g2y + g2z * g2z) + m3 * (a2y * a2y + a2z * a2z) + i2;
+    double n33 = m3 * (g3y * g3y + g3z * g3z) + i3;
+    double n12 = m2 * (a1y * g2y + a1z * g2z) + m3 * (a1y * a2y + a1z * a2z);
+    double n13 = m3 * (a1y * g3y + a1z * g3z);
+    double n23 = m3 * (a2y * g3y + a2z * g3z);
+    double w_1 = w0, w_2 = w0 + w1, w_3, k1, k2, k3;
+    double h1y, h1z, h2y, h2z, h3y, h3z, b1y, b1z, b2y, b2z;
+    double vp1y, vp1z, vp2y, vp2z, vp3y, vp3z, e1, e2, e3;
+    w_3 = w_2 + w2;
+    k1 = w_1 * w_1, k2 = w_2 * w_2, k3 = w_3 * w_3;
+    h1y = u1 * c1 - v1 * s1, h1z = -u1 * s1 - v1 * c1;
+    h2y = u2 * c2 - v2 * s2, h2z = -u2 * s2 - v2 * c2;
+    h3y = u3 * c3 - v3 * s3, h3z = -u3 * s3 - v3 * c3;
+    b1y = l1 * c1, b1z = -l1 * s1, b2y = l2 * c2, b2z = -l2 * s2;
+    vp1y = k1 * h1y, vp1z = k1 * h1z;
+    vp2y = k1 * b1y + k2 * h2y, vp2z = k1 * b1z + k2 * h2z;
+    vp3y = k1 * b1y + k2 * b2y + k3 * h3y, vp3z = k1 * b1z + k2 * b2z + k3 * h3z;
+    e1 = (m1 * (g1y * vp1y + g1z * vp1z) + m2 * (a1y * vp2y + a1z * vp2z)
+          + m3 * (a1y * vp3y + a1z * vp3z));
+    e2 = m2 * (g2y * vp2y + g2z * vp2z) + m3 * (a2y * vp3y + a2z * vp3z);
+    e3 = m3 * (g3y * vp3y + g3z * vp3z);
+    out[0] = n11 + n22 + n33 + 2.0 * (n12 + n13 + n23);
+    out[1] = n22 + 2.0 * n23 + n33;
+    out[2] = n33;
+    out[3] = n12 + n13 + n22 + 2.0 * n23 + n33;
+    out[4] = n13 + n23 + n33;
+    out[5] = n23 + n33;
+    out[6] = e1 + e2 + e3, out[7] = e2 + e3, out[8] = e3;
+}
+
+/* JointServo.command: the spool command in [-1, 1]; advances the filter. */
+static double command(Servo *s, double x_ref, double v_ref, double a_ref, double x, double force) {
+    double excess = force - s->mass * a_ref, last = s->has_last ? s->last : excess;
+    double filtered = s->keep * s->filtered + s->gain * (excess - last), velocity, u, pulled;
+    double gain, reserve, candidate;
+    s->filtered = filtered;
+    s->last = excess;
+    s->has_last = 1;
+    velocity = v_ref + s->kp * (x_ref - x) - s->kf * filtered;
+    if (s->compensated) {
+        if (velocity >= 0.0) {
+            pulled = -force / s->areas[1] - s->p_tank;
+            gain = s->metered[0];
+            if (pulled > 0.0) {
+                candidate = s->pull[0] * sqrt(pulled);
+                gain = candidate > gain ? candidate : gain; /* Python's max keeps the first */
+            }
+        } else {
+            pulled = force / s->areas[0] - s->p_tank;
+            gain = s->metered[1];
+            if (pulled > 0.0) {
+                candidate = s->pull[1] * sqrt(pulled);
+                gain = candidate > gain ? candidate : gain;
+            }
+        }
+        u = velocity / gain;
+    } else if (velocity >= 0.0) {
+        reserve = s->extend - force;
+        if (reserve < s->least) reserve = s->least;
+        u = velocity / sqrt(reserve * s->per_reserve_extend);
+    } else {
+        reserve = force + s->retract;
+        if (reserve < s->least) reserve = s->least;
+        u = velocity / sqrt(reserve * s->per_reserve_retract);
+    }
+    return u > 1.0 ? 1.0 : (u < -1.0 ? -1.0 : u);
+}
+
+/* LoadSensingPump.law: p_pump, p_LS, sharing into out. */
+static void supply(const Coupling *c, const double *u, const double *p_A, const double *p_B,
+                   double *out) {
+    double p_ls = 0.0, demand = 0.0, sharing;
+    int i;
+    for (i = 0; i < 3; i++) {
+        if (c->full[i] < 0.0) continue;
+        if (u[i] > 0.0) {
+            demand += c->full[i] * (u[i] < 1.0 ? u[i] : 1.0);
+            p_ls = p_A[i] > p_ls ? p_A[i] : p_ls;
+        } else if (u[i] < 0.0) {
+            demand -= c->full[i] * (u[i] > -1.0 ? u[i] : -1.0);
+            p_ls = p_B[i] > p_ls ? p_B[i] : p_ls;
+        }
+    }
+    p_ls = p_ls < c->ceiling ? p_ls : c->ceiling;
+    sharing = demand <= c->q_max ? 1.0 : c->q_max / demand;
+    out[0] = p_ls + c->margin * sharing * sharing;
+    out[1] = p_ls;
+    out[2] = sharing;
+}
+
+/* The step's kinematics from the cylinders' outputs; the Pile's tip inputs. */
+EXPORT void coupling_before_pile(Coupling *c) {
+    kinematics(c, c->cylinder_out[0][0], c->cylinder_out[1][0], c->cylinder_out[2][0]);
+    c->pile_in[0] = c->pose[3];
+    c->pile_in[1] = c->pose[4];
+    c->pile_in[2] = -c->pose[5]; /* the Pile's bucket_angle: the tip-to-pin line */
+}
+
+/* Loads, inertia, commands and supply after the Pile's step; the row of step k; k += 1. */
+EXPORT void coupling_after_pile(Coupling *c) {
+    const double *pose = c->pose, *pile = c->pile_out;
+    const double *x_ref = c->x_ref + 3 * c->k, *v_ref = c->v_ref + 3 * c->k;
+    const double *a_ref = c->a_ref + 3 * c->k;
+    double *row = c->rows + c->n_columns * c->k, *joints = c->joints + 3 * c->k;
+    double x[3], v[3], p_A[3], p_B[3], f[3], e[3], r[3], w[3], a[3], d[3], u[3], l[3];
+    double m[9], pumped[3], mass = pile[0], force_y = pile[1], force_z = pile[2];
+    int i, column;
+    for (i = 0; i < 3; i++) {
+        const double *out = c->cylinder_out[i];
+        x[i] = out[0], v[i] = out[1], p_A[i] = out[2], p_B[i] = out[3], f[i] = out[4];
+        r[i] = pose[6 + i];
+        /* ArmCoupling.loads */
+        e[i] = (pose[9 + i] + mass * pose[12 + i]
+                - (force_y * pose[16 + 2 * i] - force_z * pose[15 + 2 * i])) / r[i];
+        w[i] = v[i] / r[i];
+        d[i] = pose[21 + i];
+        a[i] = (a_ref[i] - d[i] * power(v_ref[i] / r[i], 2.0)) / r[i];
+    }
+    inertia(c, w[0], w[1], w[2], mass, m);
+    /* m: M00, M11, M22, M01, M02, M12, h0, h1, h2 */
+    e[0] += (m[3] * a[1] + m[4] * a[2] + m[6]) / r[0] - m[0] * d[0] * w[0] * w[0] / (r[0] * r[0]);
+    e[1] += (m[3] * a[0] + m[5] * a[2] + m[7]) / r[1] - m[1] * d[1] * w[1] * w[1] / (r[1] * r[1]);
+    e[2] += (m[4] * a[0] + m[5] * a[1] + m[8]) / r[2] - m[2] * d[2] * w[2] * w[2] / (r[2] * r[2]);
+    for (i = 0; i < 3; i++) {
+        u[i] = command(&c->servo[i], x_ref[i], v_ref[i], a_ref[i], x[i], f[i]);
+        l[i] = m[i] / (r[i] * r[i]);
+        joints[i] = pose[i];
+    }
+    column = 0;
+    for (i = 0; i < 3; i++) {
+        row[column++] = x[i], row[column++] = v[i], row[column++] = p_A[i];
+        row[column++] = p_B[i], row[column++] = f[i], row[column++] = u[i];
+        row[column++] = e[i], row[column++] = l[i];
+    }
+    for (i = 0; i < 7; i++) row[column++] = pile[i];
+    row[column++] = pose[3], row[column++] = pose[4], row[column++] = pose[5];
+    if (c->supplied) {
+        supply(c, u, p_A, p_B, pumped);
+        row[column++] = pumped[0], row[column++] = pumped[1], row[column++] = pumped[2];
+        for (i = 0; i < 3; i++) {
+            c->cylinder_in[i][3] = pumped[0];
+            c->cylinder_in[i][4] = pumped[1];
+        }
+    }
+    for (i = 0; i < 3; i++) {
+        c->cylinder_in[i][0] = u[i];
+        c->cylinder_in[i][1] = e[i];
+        c->cylinder_in[i][2] = l[i];
+    }
+    c->k += 1;
+}
+
+/* The layout check of the binding: sizeof(Coupling) as this compiler lays it out. */
+EXPORT long coupling_size(void) { return (long)sizeof(Coupling); }

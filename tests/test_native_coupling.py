@@ -1,0 +1,99 @@
+"""The per-step coupling in C (orchestrator.plants.native) against the Python loop it replaces
+(orchestrator.plants.coupling_loop): the same campaign through either gives the same bits, in
+every signal, joint angle, weighing and resume state, on the load-sensing pump and on the
+constant supply, with the arm held after a lagging period; a plant the C coupling cannot serve
+(a linear servo) runs the Python loop and says why; the library builds byte-reproducibly."""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from orchestrator.campaign import run_campaign
+from orchestrator.plants import simulated_excavator
+from orchestrator.plants.coupling_loop import PythonCoupling
+from orchestrator.plants.native import NativeCoupling
+from orchestrator.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+PAPER = ROOT / "scenarios" / "paper-2020.toml"
+
+
+def campaign(monkeypatch, native: bool, scenario: Path, overrides: list[str]) -> dict:
+    """One campaign through one loop: its measurements, the plant's resume state after each
+    period, the loops it used and why, and the chunks the arm was held for."""
+    cls = simulated_excavator.SimulatedExcavator
+    monkeypatch.setattr(cls, "native_coupling", native)
+    out = {"measurements": [], "states": [], "loops": set(), "notes": set(), "held": 0}
+    run_period, settle = cls.run_period, cls._settle
+
+    def keep(self, reference):
+        out["measurements"].append(run_period(self, reference))
+        out["states"].append(self.resume_state())
+        out["loops"].add(type(self._loop))
+        out["notes"].add(self.step_loop_note)
+        return out["measurements"][-1]
+
+    def count(self, *args):
+        chunks = settle(self, *args)
+        out["held"] += len(chunks)
+        return chunks
+
+    monkeypatch.setattr(cls, "run_period", keep)
+    monkeypatch.setattr(cls, "_settle", count)
+    result = run_campaign(load_scenario(scenario, overrides))
+    monkeypatch.setattr(cls, "run_period", run_period)
+    monkeypatch.setattr(cls, "_settle", settle)
+    assert result.termination == "periods", result.message
+    return out
+
+
+def assert_same_bits(a, b) -> None:
+    assert len(a) == len(b)
+    for first, second in zip(a, b, strict=True):
+        assert first.weighed_mass_kg == second.weighed_mass_kg
+        assert np.array_equal(first.joints_rad, second.joints_rad)
+        assert np.array_equal(first.t_s, second.t_s)
+        assert first.signals.keys() == second.signals.keys()
+        for name in first.signals:
+            assert np.array_equal(first.signals[name], second.signals[name]), name
+
+
+@pytest.mark.parametrize("overrides", [
+    ["periods=20"],  # the paper scenario on its load-sensing pump
+    ["periods=4", "plant.supply.kind=constant"],
+    # a pump too small for the path: periods that end off the path are held on its last pose
+    ["periods=3", "plant.supply.max_flow_l_min=100", "plant.max_tracking_error_deg=60"],
+], ids=["pump", "constant-supply", "held"])
+def test_the_c_coupling_gives_the_python_loops_bits(monkeypatch, overrides):
+    native = campaign(monkeypatch, True, PAPER, overrides)
+    python = campaign(monkeypatch, False, PAPER, overrides)
+    assert native["loops"] == {NativeCoupling} and native["notes"] == {None}
+    assert python["loops"] == {PythonCoupling}
+    assert_same_bits(native["measurements"], python["measurements"])
+    assert native["states"] == python["states"]  # servo filters, FMU states, step counters
+    assert native["held"] == python["held"]
+    assert (native["held"] > 0) == ("plant.max_tracking_error_deg=60" in overrides)
+
+
+def test_a_linear_servo_runs_the_python_loop_and_says_why(monkeypatch):
+    ideal = campaign(monkeypatch, True, ROOT / "scenarios" / "paper-2020-ideal-actuators.toml",
+                     ["periods=1"])
+    assert ideal["loops"] == {PythonCoupling}
+    assert any("linear servo" in note for note in ideal["notes"])
+
+
+def test_the_library_builds_byte_reproducibly(tmp_path, monkeypatch):
+    from fmus.shared_library import build_library
+
+    source = ROOT / "orchestrator" / "plants" / "native"
+    digests = []
+    for folder in ("a", "b"):
+        monkeypatch.setenv("EXCOSIM_FMU_DIR", str(tmp_path / folder))
+        path = build_library("coupling", source, ("coupling.c",))
+        assert path.is_relative_to(tmp_path / folder)
+        digests.append(hashlib.sha256(path.read_bytes()).hexdigest())
+    assert digests[0] == digests[1]
