@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from orchestrator.campaign.heap import frozen_heap
 from orchestrator.campaign.record import period_record, records_dataframe
 from orchestrator.campaign.resume_state import resume_record
 from orchestrator.campaign.strategy import adaptation_strategy
@@ -191,7 +192,7 @@ def run_opened(scenario: Scenario, log, plant: Plant | None, start: Start,
     watchdog = StepWatchdog(step_timeout_s, hang) if step_timeout_s and on_step_timeout \
         else contextlib.nullcontext()
     try:
-        with watchdog:
+        with watchdog, frozen_heap():
             if plant is None:
                 plant = build_plant(scenario)
             termination, message = _dig(scenario, plant, log, records, progress, start)
