@@ -139,7 +139,14 @@ def replay_fast(scenario, series) -> tuple[dict[str, float], int]:
             begin = time.perf_counter()
             for k in range(len(matrix)):
                 slave.step(k * h, h, matrix[k])
-            seconds[component] = time.perf_counter() - begin
+            stepped = time.perf_counter() - begin
+            # The replay's own copy of each row into the input buffer, which the plant's loop
+            # does not make (it writes the inputs in place): timed alone and taken off.
+            inputs_buffer = slave.inputs
+            begin = time.perf_counter()
+            for k in range(len(matrix)):
+                inputs_buffer[:] = matrix[k]
+            seconds[component] = stepped - (time.perf_counter() - begin)
         steps = len(matrix)
     return seconds, steps
 

@@ -110,20 +110,22 @@ def paper_period(tmp_path_factory) -> dict[str, np.ndarray]:
     return kept[0].signals
 
 
-def test_the_paper_boom_within_the_bounds_of_radau(fmu, paper_period):
-    """The boom, the stiffest joint (73 RK4 substeps per step at its stability bound), over the
-    first 4 s of period 1 (reach and penetration) with the inputs the run gave it."""
-    joint, n = "boom", 400
-    parameters = dict(load_scenario(PAPER).plant.boom.parameters)
-    held = {name: (paper_period.get(f"{joint}.{name}", paper_period.get(f"supply.{name}")))[:n]
+@pytest.mark.parametrize("joint", ["boom", "stick", "bucket"])
+def test_the_paper_cylinders_within_the_bounds_of_radau(fmu, paper_period, joint):
+    """Each joint over the whole of period 1 with the inputs the run gave it, at the paper
+    scenario's own integrator and tolerance; RK4 at 2000 substeps as a check of the reference.
+    Measured at the scenario's 3e-7: boom 1.1e-6 m and 0.002 bar, stick 3.2e-6 m and 0.003 bar,
+    bucket 6e-7 m and 0.0004 bar; at 1e-6 the stick reached 1.01e-5 m (over the bound)."""
+    parameters = dict(getattr(load_scenario(PAPER).plant, joint).parameters)
+    assert parameters["integrator"] == 1
+    held = {name: paper_period.get(f"{joint}.{name}", paper_period.get(f"supply.{name}"))
             for name in INPUTS}
     x0 = float(paper_period[f"{joint}.x"][0])
     reference = reference_run({**start_parameters(fmu), **parameters}, x0, held, H)
     assert np.ptp(reference[:, 0]) > 0.05  # it moves
     for extra, stroke_bound, pressure_bound in (({"integrator": 0, "n_substeps": 2000}, 1e-8,
-                                                 1.0),
-                                                ({"integrator": 1, "tolerance": 1e-7}, 1e-5,
-                                                 0.1e5)):
+                                                 10.0),
+                                                ({}, 1e-5, 0.1e5)):  # m, Pa
         stroke, pressure = differences(run(fmu, {**parameters, "x0": x0, **extra}, held),
                                        reference)
-        assert stroke < stroke_bound and pressure < pressure_bound, extra
+        assert stroke < stroke_bound and pressure < pressure_bound, (extra, stroke, pressure)

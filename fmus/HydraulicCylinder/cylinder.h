@@ -38,7 +38,7 @@ void cylinder_jacobian(const P *p, const Y *y, const Y *dy, double *J);
 /* integration.c: advance y by h (s), adding the powers' integrals to energy (J). */
 void cylinder_rk4(const P *p, Y *y, double *energy, double h, long substeps);
 /* Adaptive RODAS3 with the error scales scale[4] (the states' units) from the suggested first
- * substep *h_next (0: none yet), which it updates; the accepted and rejected substeps are added
+ * substep *h_next (0: none yet), which it updates for the next step (integration.c); the accepted and rejected substeps are added
  * to *accepted and *rejected. NULL on success, else a message. */
 const char *cylinder_rodas3(const P *p, Y *y, double *energy, double h, const double *scale,
                             double *h_next, double *accepted, double *rejected);
