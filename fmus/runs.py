@@ -94,8 +94,8 @@ class FastSlave:
     on close().
     """
 
-    # FMI 2.0: set, step and get in one foreign call (fmus.fast_step) where it can be built;
-    # False: three calls (the comparison in tests/test_fast_step.py).
+    # Set, step and get in one foreign call (fmus.fast_step) where it can be built; False:
+    # three calls (the comparison in tests/test_fast_step.py).
     one_call = True
 
     def __init__(self, fmu: str | Path, inputs: Sequence[str], outputs: Sequence[str],
@@ -182,15 +182,17 @@ class FastSlave:
         if version == 2:
             do_step.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int]
             self._do_step = functools.partial(do_step, component)  # (t, h, 1): bench/
-        fast = fast_step.library() if version == 2 and self.one_call else None
+        fast = fast_step.library() if self.one_call else None
         if fast is not None:
-            # The three calls in one foreign call (fmus/fast_step/fmi2_step.c).
-            self._fast = fast_step.Fmi2Step(
+            # The three calls in one foreign call (fmus/fast_step/fmi2_step.c, fmi3_step.c);
+            # the struct's pointers stay valid: vr_in and vr_out are held by self._set and
+            # self._get, the buffers by self.
+            self._fast = fast_step.StepCall(
                 self.slave.component, *(ctypes.cast(f, ctypes.c_void_p).value
                                         for f in (set_real, get_real, do_step)),
                 ctypes.addressof(vr_in), len(inputs), self.inputs.ctypes.data,
                 ctypes.addressof(vr_out), len(outputs), self._out.ctypes.data)
-            one_call = fast.fmi2_step
+            one_call = fast.fmi2_step if version == 2 else fast.fmi3_step
             bound = ctypes.c_void_p(ctypes.addressof(self._fast))
             failing = (set_name, step_name, get_name)
 
@@ -201,6 +203,8 @@ class FastSlave:
                 if values is not None:
                     inputs[:] = values
                 failed = one_call(bound, t, h)
+                if failed == 40:
+                    raise RuntimeError(f"{label} asked to terminate the simulation at t = {t}")
                 if failed:
                     raise RuntimeError(f"{label}: {failing[failed // 10 - 1]} failed at t = "
                                        f"{t}{said()}")

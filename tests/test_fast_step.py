@@ -1,6 +1,6 @@
-"""FastSlave's FMI 2.0 step as one foreign call (fmus/fast_step/fmi2_step.c) against the three
-calls it replaces: the same outputs bit for bit, step after step, for a cylinder and the pile;
-the same error naming the failing call and the FMU's reason."""
+"""FastSlave's step as one foreign call (fmus/fast_step/fmi2_step.c, fmi3_step.c) against the
+three calls it replaces: the same outputs bit for bit, step after step, for a cylinder and the
+pile, FMI 2.0 and 3.0; the same error naming the failing call and the FMU's reason."""
 
 import numpy as np
 import pytest
@@ -32,9 +32,10 @@ def test_the_library_is_built_here():
     assert fast_step.library() is not None  # gcc builds the FMUs, so it builds this too
 
 
+@pytest.mark.parametrize("fmi_version", [2, 3])
 @pytest.mark.parametrize("model", ["HydraulicCylinder", "Pile"])
-def test_one_call_gives_the_three_calls_bits(model):
-    fmu = fmus.build(model)
+def test_one_call_gives_the_three_calls_bits(model, fmi_version):
+    fmu = fmus.build(model, fmi_version=fmi_version)
     if model == "HydraulicCylinder":
         inputs = {name: values[::10] for name, values in varied_inputs(8000).items()}
         outputs, start = ["x", "v", "p_A", "p_B", "F", "E_supply"], {"x0": 0.4}
