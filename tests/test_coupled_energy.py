@@ -4,11 +4,14 @@ feeds it the arm's pose-dependent inertia (mass_load) and loads, and the soil is
 Per cylinder (fmus/HydraulicCylinder/model.c):
     E_supply + E_mass_load = E_tank + E_throttling + E_relief + E_friction + E_load
                              + E_end_stop + E_stored - E_stored(0)
-to RK4's own error (tests/test_hydraulic_cylinder_energy.py derives it). Measured over the 20
-paper periods: 1e-14 of the energy supplied per cylinder (9.3 MJ in all from the load-sensing
-pump, 89.3 % of it throttled, 2.9 MJ of that in the compensators; 22.7 MJ and 95.5 % on the
-constant 30 MPa supply); the bound, 1e-9 of the energy through the cylinder, leaves room for
-other CPUs' rounding and is far below any bookkeeping error (of the order of a term).
+to the integrator's own error. With RK4 (integrator = 0; tests/test_hydraulic_cylinder_energy.py
+derives its error) measured over the 20 paper periods: 1e-14 of the energy supplied per cylinder
+(9.3 MJ in all from the load-sensing pump, 89.3 % of it throttled, 2.9 MJ of that in the
+compensators; 22.7 MJ and 95.5 % on the constant 30 MPa supply); the bound, 1e-9 of the energy
+through the cylinder, leaves room for other CPUs' rounding and is far below any bookkeeping
+error (of the order of a term). The paper scenario's own RODAS3 (tolerance 3e-7) closes to its
+trapezoidal quadrature of the powers (tests/test_cylinder_rodas3.py): measured 1.4 J of 0.4 MJ
+supplied on the stick over 3 periods (3.5e-6); bound 2e-5 of the energy supplied.
 
 The soil: the work of its force on the bucket tip over each period, by the trapezoidal rule on
 the logged samples, is negative (it dissipates, and gives back at most the little elastic
@@ -32,9 +35,12 @@ ENERGIES = ("E_supply", "E_tank", "E_throttling", "E_relief", "E_friction", "E_l
 CHAMBERS = ("bore", "rod", "stroke", "V_dead_A", "V_dead_B", "beta")
 
 
-@pytest.fixture(scope="module")
-def coupled(tmp_path_factory):
-    scenario = load_scenario(SCENARIO, ["periods=3"])
+RK4 = [f"plant.{joint}.parameters.integrator=0" for joint in JOINT_NAMES]
+
+
+@pytest.fixture(scope="module", params=["rk4", "scenario"])
+def coupled(tmp_path_factory, request):
+    scenario = load_scenario(SCENARIO, ["periods=3"] + (RK4 if request.param == "rk4" else []))
     plant = build_plant(scenario)
     start = {}
 
@@ -45,7 +51,7 @@ def coupled(tmp_path_factory):
 
     log = tmp_path_factory.mktemp("energy") / "run.mcap"
     result = run_campaign(scenario, plant=plant, log_path=log, progress=at_start)
-    return result, start, log
+    return result, start, log, request.param
 
 
 def _initial_stored_energy(data: dict, sample) -> float:
@@ -59,7 +65,7 @@ def _initial_stored_energy(data: dict, sample) -> float:
 
 
 def test_every_cylinders_energy_balance_closes_under_the_coupling(coupled):
-    result, energies, log = coupled
+    result, energies, log, integrator = coupled
     assert result.termination == "periods"
     run = read_run(log, topics=tuple(f"/cylinder/{j}" for j in JOINT_NAMES))
     for joint in JOINT_NAMES:
@@ -70,7 +76,8 @@ def test_every_cylinders_energy_balance_closes_under_the_coupling(coupled):
         spent = (e["E_tank"] + e["E_throttling"] + e["E_relief"] + e["E_friction"]
                  + e["E_load"] + e["E_end_stop"] + e["E_stored"] - stored_0)
         residual = e["E_supply"] + e["E_mass_load"] - spent
-        assert abs(residual) < 1e-9 * through, (joint, residual, e)
+        bound = 1e-9 * through if integrator == "rk4" else 2e-5 * e["E_supply"]
+        assert abs(residual) < bound, (joint, residual, e)
         assert e["E_supply"] > 0 and e["E_throttling"] > 0
         # On the load-sensing pump every compensator throttles when its load is not the highest.
         assert 0.0 < e["E_compensator"] < e["E_throttling"], (joint, e)
