@@ -27,11 +27,11 @@ def test_a_master_digs_with_the_standalone_emulator(capsys):
         "virtual", channel, 500_000, None, 2.0, 10.0, [], [])))
     device.start()
     # The device needs a few seconds to start (its FMUs and servo design): a long connect time.
-    # Device and master share this process (and the suite's heap): both timeouts at 12 frames,
-    # the most the 4-bit counter allows, so that a stall of the process is less likely to end
-    # the period (once, in a fresh clone's suite, a command timeout of 80 ms did); the timeouts
-    # themselves are tested in tests/test_lab_faults.py.
-    settings = LabSettings(channel=channel, time_scale=1.0, command_timeout_s=0.12,
+    # Device and master share this process (and the suite's heap): timeouts near the most the
+    # protocol allows (12 frames for the feedback, the command's below it), so that a stall of
+    # the process is less likely to end the period (once, in a fresh clone's suite, a command
+    # timeout of 80 ms did); the timeouts themselves are tested in tests/test_lab_faults.py.
+    settings = LabSettings(channel=channel, time_scale=1.0, command_timeout_s=0.11,
                            feedback_timeout_s=0.12, heartbeat_timeout_s=1.0,
                            connect_timeout_s=16.0)
     plant = LabExcavator(settings, scenario.geometry().joint_limits_rad, scenario.limits_rad())
