@@ -94,8 +94,7 @@ class FastSlave:
     on close().
     """
 
-    # Set, step and get in one foreign call (fmus.fast_step) where it can be built; False:
-    # three calls (the comparison in tests/test_fast_step.py).
+    # Set, step, get in one foreign call (fmus.fast_step); False: three (tests/test_fast_step.py)
     one_call = True
 
     def __init__(self, fmu: str | Path, inputs: Sequence[str], outputs: Sequence[str],
@@ -184,9 +183,9 @@ class FastSlave:
             self._do_step = functools.partial(do_step, component)  # (t, h, 1): bench/
         fast = fast_step.library() if self.one_call else None
         if fast is not None:
-            # The three calls in one foreign call (fmus/fast_step/fmi2_step.c, fmi3_step.c);
-            # the struct's pointers stay valid: vr_in and vr_out are held by self._set and
-            # self._get, the buffers by self.
+            # The three calls in one foreign call (fmus/fast_step/); what the struct points
+            # into is held by self.
+            self._value_references = vr_in, vr_out
             self._fast = fast_step.StepCall(
                 self.slave.component, *(ctypes.cast(f, ctypes.c_void_p).value
                                         for f in (set_real, get_real, do_step)),
@@ -202,12 +201,11 @@ class FastSlave:
                      component=component) -> np.ndarray:
                 if values is not None:
                     inputs[:] = values
-                failed = one_call(bound, t, h)
-                if failed == 40:
+                failed = one_call(bound, t, h) >> 8  # which call (fmi2_step.c)
+                if failed == 4:
                     raise RuntimeError(f"{label} asked to terminate the simulation at t = {t}")
                 if failed:
-                    raise RuntimeError(f"{label}: {failing[failed // 10 - 1]} failed at t = "
-                                       f"{t}{said()}")
+                    raise RuntimeError(f"{label}: {failing[failed - 1]} failed at t = {t}{said()}")
                 return out
         elif version == 2:
             def step(t: float, h: float, values: np.ndarray | None = None) -> np.ndarray:

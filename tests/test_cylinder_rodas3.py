@@ -56,7 +56,7 @@ def test_rodas3_tracks_the_reference_across_the_valid_range(fmu, inputs, referen
 def test_rodas3_takes_fewer_substeps_than_rk4s_stability_allows(fmu, inputs):
     """Measured on these inputs: 27 RODAS3 substeps per step at 1e-6 (2412 rejected in all)
     against RK4's 48.7; at 1e-7, 57 (accuracy, not stability, sizes them: an input that changes
-    every step). On the paper's period 1 at 3e-7: 2.8-4.5 per step against RK4's 20-73."""
+    every step). On the paper's period 1 at 3e-7: 2.8-4.5 accepted per step against RK4's 20-73."""
     r = run(fmu, {"x0": 0.4, "integrator": 1, "tolerance": 1e-6}, inputs)
     rk4 = run(fmu, {"x0": 0.4}, inputs)  # RK4 at its stable substep
     assert r["substeps"][-1] + r["rejected_substeps"][-1] < 0.7 * rk4["substeps"][-1]

@@ -97,3 +97,20 @@ def test_the_library_builds_byte_reproducibly(tmp_path, monkeypatch):
         assert path.is_relative_to(tmp_path / folder)
         digests.append(hashlib.sha256(path.read_bytes()).hexdigest())
     assert digests[0] == digests[1]
+
+
+def test_the_c_coupling_refuses_references_it_would_read_past():
+    from orchestrator.campaign.loop import build_plant
+
+    with build_plant(load_scenario(PAPER, ["periods=1"])) as plant:
+        middle = [0.5 * table.stroke_m for table in plant.coupling.tables]
+        plant._start(np.array(plant.coupling.kinematics(*middle)[:3]))  # at rest mid-stroke
+        loop = plant._loop
+        assert isinstance(loop, NativeCoupling)
+        good = np.zeros((4, 3))
+        with pytest.raises(ValueError, match=r"must be \(n, 3\)"):
+            loop.track(np.zeros((4, 2)), good, good, 37, 0, 0.0)
+        with pytest.raises(ValueError, match=r"must be \(n, 3\)"):
+            loop.track(good, np.zeros((3, 3)), good, 37, 0, 0.0)
+        with pytest.raises(ValueError, match="signal columns"):
+            loop.track(good, good, good, 34, 0, 0.0)

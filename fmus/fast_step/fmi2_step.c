@@ -27,15 +27,15 @@ typedef struct {
     double *outputs;
 } Fmi2Step;
 
-/* 0 when all three calls returned fmi2OK or fmi2Warning; else 10 * (1 set, 2 step, 3 get) +
- * the failing call's status. */
+/* 0 when all three calls returned fmi2OK or fmi2Warning; else (1 set, 2 step, 3 get) << 8 | the
+ * failing call's status (its low byte: an FMU may return anything). */
 EXPORT int fmi2_step(const Fmi2Step *s, double t, double h) {
     int status = s->set_real(s->component, s->vr_in, s->n_in, s->inputs);
-    if (status > 1) return 10 + status;
+    if (status > 1) return (1 << 8) | (status & 0xff);
     status = s->do_step(s->component, t, h, 1);
-    if (status > 1) return 20 + status;
+    if (status > 1) return (2 << 8) | (status & 0xff);
     status = s->get_real(s->component, s->vr_out, s->n_out, s->outputs);
-    if (status > 1) return 30 + status;
+    if (status > 1) return (3 << 8) | (status & 0xff);
     return 0;
 }
 

@@ -30,18 +30,19 @@ typedef struct {
     double *outputs;
 } Fmi3Step;
 
-/* 0 when all three calls returned fmi3OK or fmi3Warning; else 10 * (1 set, 2 step, 3 get) +
- * the failing call's status; 40 when the FMU asked to terminate the simulation. */
+/* 0 when all three calls returned fmi3OK or fmi3Warning; else (1 set, 2 step, 3 get) << 8 | the
+ * failing call's status (its low byte: an FMU may return anything); 4 << 8 when the FMU asked
+ * to terminate the simulation. */
 EXPORT int fmi3_step(const Fmi3Step *s, double t, double h) {
     bool event = false, terminate = false, early = false;
     double last = 0.0;
     int status = s->set_float64(s->instance, s->vr_in, s->n_in, s->inputs, s->n_in);
-    if (status > 1) return 10 + status;
+    if (status > 1) return (1 << 8) | (status & 0xff);
     status = s->do_step(s->instance, t, h, true, &event, &terminate, &early, &last);
-    if (status > 1) return 20 + status;
-    if (terminate) return 40;
+    if (status > 1) return (2 << 8) | (status & 0xff);
+    if (terminate) return 4 << 8;
     status = s->get_float64(s->instance, s->vr_out, s->n_out, s->outputs, s->n_out);
-    if (status > 1) return 30 + status;
+    if (status > 1) return (3 << 8) | (status & 0xff);
     return 0;
 }
 

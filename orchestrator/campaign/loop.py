@@ -192,10 +192,11 @@ def run_opened(scenario: Scenario, log, plant: Plant | None, start: Start,
     watchdog = StepWatchdog(step_timeout_s, hang) if step_timeout_s and on_step_timeout \
         else contextlib.nullcontext()
     try:
-        with watchdog, frozen_heap():
+        with watchdog:
             if plant is None:
                 plant = build_plant(scenario)
-            termination, message = _dig(scenario, plant, log, records, progress, start)
+            with frozen_heap():  # the plant's own long-lived objects included
+                termination, message = _dig(scenario, plant, log, records, progress, start)
     except Exception as failure:
         termination, error = "error", failure
         period = len(records) + 1

@@ -12,8 +12,13 @@ one serves every servo (the linear servo too) and stays the reference the C one 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
+from orchestrator.plants.arm_coupling import ArmCoupling
+from orchestrator.plants.arm_dynamics import ArmInertia
+from orchestrator.plants.master import Master
 from plant_models.supply import SupplyLaw
 
 
@@ -24,7 +29,8 @@ class PythonCoupling:
     command(x_ref, v_ref, a_ref, x, force) -> u; supply_law: the pump's law (None: each valve
     on its own supply); step_s: the communication step (s)."""
 
-    def __init__(self, master, coupling, inertia, servos, supply_law: SupplyLaw | None,
+    def __init__(self, master: Master, coupling: ArmCoupling, inertia: ArmInertia,
+                 servos: Sequence[object], supply_law: SupplyLaw | None,
                  step_s: float) -> None:
         self._master, self._coupling, self._inertia = master, coupling, inertia
         self._servos, self._supply, self._step_s = tuple(servos), supply_law, float(step_s)

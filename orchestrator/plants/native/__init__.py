@@ -5,7 +5,7 @@ stroke tables and geometry, the arm inertia, the servos' constants and filter st
 pump's law) into coupling.c's struct once; `track(strokes, rates, accelerations, ...)` then
 runs a period's steps: per step one call before the Pile's step and one after it, the four FMU
 steps in Python between them as before. It gives the same bits as the Python loop
-(orchestrator.plants.simulated_excavator; tests/test_native_coupling.py).
+(orchestrator.plants.coupling_loop.PythonCoupling; tests/test_native_coupling.py).
 
 `unavailable(servos)` says why the C coupling cannot serve (one line), None when it can: it
 needs gcc (the library is built on first use and cached like the FMUs: fmus.shared_library)
@@ -15,11 +15,16 @@ and servos that are plant_models.servo.JointServo (the linear servo runs in Pyth
 from __future__ import annotations
 
 import ctypes
+import functools
+from collections.abc import Sequence
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
+from orchestrator.plants.arm_coupling import ArmCoupling
+from orchestrator.plants.arm_dynamics import ArmInertia
+from orchestrator.plants.master import Master
 from plant_models.geometry import GRAVITY_M_S2
 from plant_models.servo import JointServo
 
@@ -70,15 +75,21 @@ def _library() -> ctypes.CDLL | str:
     except BuildError as error:
         return str(error).splitlines()[0]
     library = ctypes.CDLL(str(path))
-    if library.coupling_size() != ctypes.sizeof(_Coupling):
+    library.coupling_size.restype = ctypes.c_long
+    offsets = (ctypes.c_long * 9)()
+    library.coupling_offsets(offsets)
+    expected = [getattr(_Coupling, f).offset for f in ("n", "table", "lengths", "servo",
+                                                       "supplied", "pose")] \
+        + [_Servo.compensated.offset, _Servo.has_last.offset, _Table.inv_dx.offset]
+    if library.coupling_size() != ctypes.sizeof(_Coupling) or list(offsets) != expected:
         return "coupling.c's struct and its binding disagree (rebuild the library)"
-    for name in ("coupling_before_pile", "coupling_after_pile"):
-        # No argtypes: ctypes then passes the pre-built pointer object as it is (FastSlave).
-        getattr(library, name).restype = None
+    # No argtypes: ctypes then passes the pre-built pointer object as it is (FastSlave).
+    library.coupling_before_pile.restype = ctypes.c_int
+    library.coupling_after_pile.restype = None
     return library
 
 
-def unavailable(servos) -> str | None:
+def unavailable(servos: Sequence[object]) -> str | None:
     """Why the C coupling cannot step a plant with these servos (one line), None if it can."""
     if not all(type(servo) is JointServo for servo in servos):
         return "a servo is not plant_models.servo.JointServo (the linear servo runs in Python)"
@@ -93,10 +104,12 @@ def _pointer(array: np.ndarray):
 class NativeCoupling:
     """coupling.c's struct for one plant (see the module docstring): its FMUs (an
     orchestrator.plants.master.Master with components boom, stick, bucket, pile), its
-    ArmCoupling and ArmInertia, its three JointServos and the pump's
-    LoadSensingPump.law_parameters (None: each valve on its own supply)."""
+    ArmCoupling and ArmInertia, its three JointServos, the pump's
+    LoadSensingPump.law_parameters (None: each valve on its own supply) and the communication
+    step step_s (s)."""
 
-    def __init__(self, master, coupling, inertia, servos, supply_parameters,
+    def __init__(self, master: Master, coupling: ArmCoupling, inertia: ArmInertia,
+                 servos: Sequence[JointServo], supply_parameters: tuple | None,
                  step_s: float) -> None:
         self._library = _library()
         self._master, self._servos, self._step_s = master, tuple(servos), float(step_s)
@@ -148,6 +161,13 @@ class NativeCoupling:
         references = [np.ascontiguousarray(a, dtype=float) for a in (strokes, rates,
                                                                     accelerations)]
         n = len(references[0])
+        # The C side reads 3 values per step and writes whole rows: shapes checked here.
+        if any(a.shape != (n, 3) for a in references):
+            raise ValueError(f"stroke reference arrays must be (n, 3), got "
+                             f"{[a.shape for a in references]}")
+        if n_columns != 34 + 3 * c.supplied:
+            raise ValueError(f"{n_columns} signal columns; the coupling writes "
+                             f"{34 + 3 * c.supplied}")
         rows, joints = np.empty((n, n_columns)), np.empty((n, 3))
         c.x_ref, c.v_ref, c.a_ref = (_pointer(a) for a in references)
         c.rows, c.joints, c.n, c.k, c.n_columns = _pointer(rows), _pointer(joints), n, 0, \
@@ -161,7 +181,10 @@ class NativeCoupling:
         before, after = self._before, self._after
         try:
             for _ in range(n):
-                before()
+                if before():
+                    raise ValueError("a cylinder's stroke is not finite: "
+                                     + ", ".join(f"{name} {master[name].outputs[0]!r}" for name
+                                                 in ("boom", "stick", "bucket")))
                 pile(pile_time, h)
                 pile_time += h
                 after()
@@ -190,6 +213,4 @@ def _servo_into(servo: JointServo, out: _Servo) -> None:
 def _bound(function, address: int):
     """function(struct) with the pointer converted once (ctypes' argument conversion costs
     more than the call)."""
-    import functools
-
     return functools.partial(function, ctypes.c_void_p(address))

@@ -1,8 +1,8 @@
 /*
  * The simulated excavator's per-step coupling in C: what orchestrator.plants.simulated_excavator
  * computes between the FMU steps of one communication step, operation for operation as its
- * Python loop (_track_python) does, so both give the same bits (IEEE doubles, no fused
- * multiply-add, the same libm calls):
+ * Python loop (orchestrator.plants.coupling_loop.PythonCoupling) does, so both give the same
+ * bits (IEEE doubles, no fused multiply-add, the same libm functions called):
  *
  *   before_pile: the cylinders' strokes -> joint angles, moment arms, tip and bucket angle
  *     (orchestrator.plants.arm_coupling: the Hermite tables and the forward kinematics) -> the
@@ -18,12 +18,16 @@
  * reports name the FMU as before. Units: SI (m, rad, N, kg, Pa, s).
  */
 #include <math.h>
+#include <stddef.h>
 
 #define EXPORT __attribute__((visibility("default")))
 
-/* Python's x ** 2 calls libm's pow, which need not round as x * x does; gcc would turn a direct
- * pow(x, 2.0) into x * x, so the call goes through a pointer it cannot see through. */
+/* Python's x ** 2 calls libm's pow, which need not round as x * x does, and math.cos and
+ * math.sin call cos and sin; gcc would turn a direct pow(x, 2.0) into x * x and a cos, sin pair
+ * into sincos, so the calls go through pointers it cannot see through. */
 static double (*volatile power)(double, double) = pow;
+static double (*volatile cosine)(double) = cos;
+static double (*volatile sine)(double) = sin;
 
 typedef struct {
     const double *angle, *c1, *c2, *c3, *arm, *arm_slope; /* per interval (arm: per node) */
@@ -62,8 +66,16 @@ typedef struct {
 /* ArmCoupling._joint: angle, arm and d(arm)/d(angle) at a stroke. */
 static void joint(const Table *table, double stroke, double *out) {
     double position = stroke * table->inv_dx, fraction, t, arm;
-    long i = (long)position;
-    i = i < 0 ? 0 : (i >= table->intervals ? table->intervals - 1 : i);
+    long i;
+    /* Python's int() truncates toward 0 before the clamp; clamped first here, as a cast of a
+     * value beyond a long is undefined (non-finite strokes are refused before this). */
+    if (!(position >= 1.0)) {
+        i = 0;
+    } else if (position >= (double)table->intervals) {
+        i = table->intervals - 1;
+    } else {
+        i = (long)position;
+    }
     fraction = position - (double)i;
     t = fraction < 0.0 ? 0.0 : (fraction > 1.0 ? 1.0 : fraction);
     arm = table->arm[i] + table->arm_slope[i] * t;
@@ -84,12 +96,12 @@ static void kinematics(Coupling *c, double x0, double x1, double x2) {
     joint(&c->table[2], x2, j2);
     phi2 = j0[0] + j1[0];
     phi3 = phi2 + j2[0];
-    c1 = cos(j0[0]);
-    s1 = sin(j0[0]);
-    c2 = cos(phi2);
-    s2 = sin(phi2);
-    c3 = cos(phi3);
-    s3 = sin(phi3);
+    c1 = cosine(j0[0]);
+    s1 = sine(j0[0]);
+    c2 = cosine(phi2);
+    s2 = sine(phi2);
+    c3 = cosine(phi3);
+    s3 = sine(phi3);
     stick_y = foot_y - l1 * c1;
     stick_z = foot_z + l1 * s1;
     pin_y = stick_y - l2 * c2;
@@ -218,12 +230,18 @@ static void supply(const Coupling *c, const double *u, const double *p_A, const 
     out[2] = sharing;
 }
 
-/* The step's kinematics from the cylinders' outputs; the Pile's tip inputs. */
-EXPORT void coupling_before_pile(Coupling *c) {
+/* The step's kinematics from the cylinders' outputs; the Pile's tip inputs. 1 (nothing done)
+ * when a stroke is not finite, where Python's int() raises. */
+EXPORT int coupling_before_pile(Coupling *c) {
+    if (!(isfinite(c->cylinder_out[0][0]) && isfinite(c->cylinder_out[1][0])
+          && isfinite(c->cylinder_out[2][0]))) {
+        return 1;
+    }
     kinematics(c, c->cylinder_out[0][0], c->cylinder_out[1][0], c->cylinder_out[2][0]);
     c->pile_in[0] = c->pose[3];
     c->pile_in[1] = c->pose[4];
     c->pile_in[2] = -c->pose[5]; /* the Pile's bucket_angle: the tip-to-pin line */
+    return 0;
 }
 
 /* Loads, inertia, commands and supply after the Pile's step; the row of step k; k += 1. */
@@ -280,5 +298,14 @@ EXPORT void coupling_after_pile(Coupling *c) {
     c->k += 1;
 }
 
-/* The layout check of the binding: sizeof(Coupling) as this compiler lays it out. */
+/* The layout check of the binding: sizeof(Coupling) and the offsets of its parts as this
+ * compiler lays them out. */
 EXPORT long coupling_size(void) { return (long)sizeof(Coupling); }
+
+EXPORT void coupling_offsets(long *out) {
+    out[0] = (long)offsetof(Coupling, n), out[1] = (long)offsetof(Coupling, table);
+    out[2] = (long)offsetof(Coupling, lengths), out[3] = (long)offsetof(Coupling, servo);
+    out[4] = (long)offsetof(Coupling, supplied), out[5] = (long)offsetof(Coupling, pose);
+    out[6] = (long)offsetof(Servo, compensated), out[7] = (long)offsetof(Servo, has_last);
+    out[8] = (long)offsetof(Table, inv_dx);
+}
