@@ -1,9 +1,10 @@
 """A recursive estimate of the material's mass per swept area, kappa (kg/m^2), from weighings.
 
 The terrain strategy (planner.terrain) predicts a period's mass as kappa A, A the area (m^2)
-between its surface estimate and the tip path. kappa lumps what the planner does not know: the
-bulk density, the width of the slice the pile tracks, the share of a swept area that enters the
-bucket. Each weighing m (kg) of a period whose executed path swept A is a measurement
+between its surface estimate and the planned tip path. kappa lumps what the planner does not know:
+the bulk density, the width of the slice the pile tracks, the share of a swept area that enters
+the bucket, how much deeper the arm runs than its plan. Each weighing m (kg) of a period whose
+planned path swept A is a measurement
 
     m = kappa A + v,   var(v) = R = sigma_w^2 + (model_share kappa A)^2,
 

@@ -5,7 +5,7 @@ The angle the soil's walls slump to is not known well (a planner is told one, pe
 off). It decides how much of a trench's walls falls back into it, and how far the slopes of an
 old trench reach toward a new one, so a wrong angle biases every prediction. Each hypothesis j
 keeps its own surface (planner.surface_estimate, slumped at its angle) and its own mass per area
-kappa_j (planner.mass_per_area). A weighing m of a period whose executed path swept A_j on
+kappa_j (planner.mass_per_area). A weighing m of a period whose planned path swept A_j on
 hypothesis j's surface scores it by the likelihood of its innovation (a multiple-model
 estimator):
 
@@ -106,13 +106,16 @@ class ReposeBank:
         return float(max(masses))
 
     def learn(self, mass_kg: float, lowest_m: np.ndarray, noise_sigma_kg: float,
-              model_share: float, drift_share: float) -> None:
+              model_share: float, drift_share: float,
+              planned_lowest_m: np.ndarray | None = None) -> None:
         """Take in a weighing mass_kg (kg) of a period whose executed tip path had the
-        `envelope` lowest_m (n,) m: weights, then each kappa, then each surface cut and
-        slumped."""
+        `envelope` lowest_m (n,) m, planned_lowest_m (n,) m that of its planned path (None:
+        the executed one): weights, then each kappa, both on the area of the planned path,
+        then each surface cut to the executed path and slumped."""
         likelihoods, updated = [], []
         for h in self.hypotheses:
-            area = h.surface.area_above(lowest_m)
+            area = h.surface.area_above(lowest_m if planned_lowest_m is None
+                                        else planned_lowest_m)
             estimate = h.estimate
             if area > 1e-6 * h.surface.cell_m:  # a period that swept nothing says nothing
                 if estimate.kappa_kg_m2 is not None:

@@ -9,7 +9,13 @@ the planner itself knows, and nothing of the plant's state:
   height, lowered after each period to the tip path the arm executed (forward kinematics of the
   measured joint angles), then slumped at an angle of repose;
 - the material's mass per swept area kappa (planner.mass_per_area), re-estimated from each
-  weighing with its uncertainty;
+  weighing with its uncertainty. The area a weighing is set against is the one the period's
+  planned path sweeps on the surface it was planned on (the arm's own path only cuts the
+  surface): the arm tracks its spline with a lag, and on the paper arm the executed tip path
+  sweeps 1-8 % more than the planned one, growing as a trench deepens, so a kappa per executed
+  area would make every prediction from a plan fall short by that much (the mass then came out
+  1-3 kg over m* in every period of the first trench); per planned area, kappa lumps the
+  tracking with the density, the slice width and the spill;
 - since the angle it is told may be off, one such surface and kappa per hypothesis of the angle
   (the told one and REPOSE_OFFSETS_DEG around it), weighed by how well each predicted the
   weighings (planner.repose_bank).
@@ -124,22 +130,29 @@ class TerrainAdaptation:
         angles = assumed + np.radians(REPOSE_OFFSETS_DEG)
         angles = angles[(angles > math.radians(15.0)) & (angles < math.radians(80.0))]
         self._cautious = False
+        self._planned_D: tuple[float, float] | None = None
         self._envelopes: dict[tuple[float, float], np.ndarray | None] = {}
         self.bank = ReposeBank(surface, angles, assumed, math.radians(REPOSE_PRIOR_SIGMA_DEG))
 
     def initial(self) -> Decision:
         """Period 1 at D0 (or after the shift, if D0 is out of reach)."""
-        return initial_state(self.defaults, self.planner.reachable)
+        decision = initial_state(self.defaults, self.planner.reachable)
+        if decision.next_state is not None:
+            self._planned_D = (decision.next_state.y_D, decision.next_state.z_D)
+        return decision
 
     def learn(self, weighed_mass_kg: float, joints_rad: np.ndarray) -> None:
-        """Take in a period: its weighing (kg) and its executed path (joints_rad, (m, 3) rad)
-        score the repose hypotheses and update their kappa, then each surface is cut to that
-        path and slumped (planner.repose_bank)."""
+        """Take in a period: its weighing (kg) against the area its planned path swept (the
+        last D this strategy handed out) scores the repose hypotheses and updates their kappa;
+        then each surface is cut to the executed path (joints_rad, (m, 3) rad) and slumped
+        (planner.repose_bank)."""
         _check_mass(weighed_mass_kg)
         s = self.settings
         tip_y, tip_z, _ = forward_kinematics(self.planner.geometry, np.asarray(joints_rad))
+        planned = None if self._planned_D is None else self._envelope(*self._planned_D)
         self.bank.learn(float(weighed_mass_kg), self.bank.envelope(tip_y, tip_z),
-                        math.hypot(s.weighing_sigma_kg, 0.1), s.model_share, s.drift_share)
+                        math.hypot(s.weighing_sigma_kg, 0.1), s.model_share, s.drift_share,
+                        planned_lowest_m=planned)
 
     def snapshot(self) -> dict[str, object]:
         """What `learn` has learnt, as JSON-able data (a resume record keeps it)."""
@@ -194,6 +207,7 @@ class TerrainAdaptation:
             return Decision(None, reset=False, terminated=True, reason=WORKSPACE_LIMIT,
                             dm_kg=dm_kg)
         nxt = AdaptationState(y_D=y_D, z_D=z_D, dz=dz, flag=state.flag, k=state.k + 1)
+        self._planned_D = (y_D, z_D)
         return Decision(nxt, reset=reset, terminated=False, reason=None, eps_m=eps, dm_kg=dm_kg,
                         **self._estimate_fields(self._mass(y_D, z_D)))
 
