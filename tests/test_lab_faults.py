@@ -37,7 +37,10 @@ LINK = ["plant.kind=lab", "plant.lab.emulate=true", "plant.lab.interface=virtual
         f"plant.lab.command_timeout_s={COMMAND_TIMEOUT}",
         f"plant.lab.feedback_timeout_s={TIMEOUT}",
         "plant.lab.heartbeat_period_s=0.1", f"plant.lab.heartbeat_timeout_s={HEARTBEAT_TIMEOUT}"]
-SLACK = 0.01  # s machine: the listener's own wake-up, not a frame period
+# s machine: the listener's wake-up and the master's own reaction, not a frame period (a
+# fresh clone's full suite once measured a 2.061 s load-cell timeout against 2.0 + T + 0.01 s,
+# with no single stall over the monitor's 4 ms: small delays add up). Still below any frame.
+SLACK = 0.02
 # For the runs of whole periods that time no stream timeout: wider ones (still within the
 # protocol's rules), so that a loaded test machine does not trip them on the way.
 LENIENT = ["plant.lab.command_timeout_s=0.45", "plant.lab.feedback_timeout_s=0.55",
