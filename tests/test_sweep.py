@@ -279,3 +279,13 @@ def test_another_sweeps_folder_is_refused_and_an_edited_sweep_goes_on(tmp_path):
     assert refused.returncode == 2 and "another sweep" in refused.stderr
     report = json.loads(sweep(grown).stdout)
     assert (report["runs"], report["skipped"], report["ran"]) == (2, 1, 1)
+
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "sweeps").glob("*.toml")), ids=lambda p: p.name)
+def test_every_shipped_sweep_plans_its_runs(path, tmp_path):
+    """Each sweep file the README names loads, and every run's scenario passes its checks."""
+    sweep, tasks = prepare(path, tmp_path / "out")
+    assert len(tasks) == len(sweep.points()) >= 2
+    assert len({json.dumps(task.scenario, sort_keys=True) for task in tasks}) == len(tasks)
+    assert not (tmp_path / "out").exists()  # planning writes nothing
