@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from planner.mass_per_area import MassPerArea
-from planner.surface_estimate import SurfaceEstimate
+from planner.surface_estimate import Relax, SurfaceEstimate
 
 WEIGHT_FLOOR = 0.02
 """Share of the weight spread evenly after each weighing: no hypothesis is ever ruled out."""
@@ -41,10 +41,12 @@ class Hypothesis:
 
 class ReposeBank:
     """Hypotheses at the angles `repose_angles_rad` ((n,) rad in (0, pi/2)), all starting from
-    `surface`; prior weights normal around assumed_rad with sigma prior_sigma_rad (rad)."""
+    `surface`; prior weights normal around assumed_rad with sigma prior_sigma_rad (rad). relax:
+    the slump kernel (SurfaceEstimate.slumped; None: the numpy one)."""
 
     def __init__(self, surface: SurfaceEstimate, repose_angles_rad: np.ndarray,
-                 assumed_rad: float, prior_sigma_rad: float) -> None:
+                 assumed_rad: float, prior_sigma_rad: float, relax: Relax | None = None) -> None:
+        self.relax = relax
         angles = np.asarray(repose_angles_rad, dtype=float)
         if angles.ndim != 1 or len(angles) == 0 or not np.all((angles > 0.0)
                                                              & (angles < 0.5 * math.pi)):
@@ -125,7 +127,7 @@ class ReposeBank:
                     likelihoods.append(-0.5 * ((mass_kg - predicted) ** 2 / variance
                                                + math.log(variance)))
                 estimate = estimate.weighed(mass_kg, area, noise_sigma_kg, model_share)
-            surface = h.surface.lowered(lowest_m).slumped(h.repose_angle_rad)
+            surface = h.surface.lowered(lowest_m).slumped(h.repose_angle_rad, self.relax)
             updated.append(replace(h, surface=surface, estimate=estimate.drifted(drift_share)))
         if len(likelihoods) == len(self.hypotheses):
             log_w = np.log(self.weights) + np.array(likelihoods)

@@ -23,6 +23,7 @@ Units: m throughout; the surface z(y) is sampled at cell centres `y_m` (n,) of w
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -93,28 +94,40 @@ class SurfaceEstimate:
         """The surface lowered to an `envelope` (n,) m wherever it runs below it."""
         return SurfaceEstimate(self.y_m, np.minimum(self.z_m, lowest_m))
 
-    def slumped(self, repose_angle_rad: float) -> SurfaceEstimate:
+    def slumped(self, repose_angle_rad: float, relax: Relax | None = None) -> SurfaceEstimate:
         """The surface after its walls slumped to repose_angle_rad (rad, in (0, pi/2)).
 
-        Conservative transfers between neighbours, alternating the even and the odd pairs (each
-        set of pairs is disjoint, so every transfer levels its pair to the allowed step exactly),
-        until no step exceeds dy tan(repose) by more than RELAX_TOLERANCE_M."""
+        relax: the kernel that levels the steps (`relax_steps`, the default, or a compiled one
+        that gives the same bits: orchestrator.campaign.native_slump)."""
         if not 0.0 < repose_angle_rad < 0.5 * math.pi:
             raise ValueError(f"repose_angle_rad must lie in (0, pi/2), got {repose_angle_rad!r}")
         z = self.z_m.copy()
-        allowed = self.cell_m * math.tan(repose_angle_rad)
-        for _ in range(RELAX_MAX_SWEEPS):
-            worst = 0.0
-            for first in (0, 1):
-                left, right = z[first:-1:2], z[first + 1::2]
-                n = min(len(left), len(right))
-                left, right = left[:n], right[:n]
-                step = left - right
-                excess = np.abs(step) - allowed
-                move = np.where(excess > 0.0, 0.5 * excess * np.sign(step), 0.0)
-                z[first:first + 2 * n:2] -= move
-                z[first + 1:first + 1 + 2 * n:2] += move
-                worst = max(worst, float(excess.max(initial=0.0)))
-            if worst <= RELAX_TOLERANCE_M:
-                break
+        (relax_steps if relax is None else relax)(z, self.cell_m * math.tan(repose_angle_rad))
         return SurfaceEstimate(self.y_m, z)
+
+
+Relax = Callable[[np.ndarray, float], None]
+"""A slump kernel: relax(z_m, allowed_m) levels the heights z_m (n,) m in place until no step
+between neighbours exceeds allowed_m (m) by more than RELAX_TOLERANCE_M (`relax_steps`)."""
+
+
+def relax_steps(z_m: np.ndarray, allowed_m: float) -> None:
+    """Conservative transfers between neighbours of z_m (n,) m, in place: half-sweeps over the
+    even, then the odd pairs (each set of pairs is disjoint, so every transfer levels its pair
+    to the allowed step exactly), until no step exceeds allowed_m (m) by more than
+    RELAX_TOLERANCE_M, or RELAX_MAX_SWEEPS."""
+    z = z_m
+    for _ in range(RELAX_MAX_SWEEPS):
+        worst = 0.0
+        for first in (0, 1):
+            left, right = z[first:-1:2], z[first + 1::2]
+            n = min(len(left), len(right))
+            left, right = left[:n], right[:n]
+            step = left - right
+            excess = np.abs(step) - allowed_m
+            move = np.where(excess > 0.0, 0.5 * excess * np.sign(step), 0.0)
+            z[first:first + 2 * n:2] -= move
+            z[first + 1:first + 1 + 2 * n:2] += move
+            worst = max(worst, float(excess.max(initial=0.0)))
+        if worst <= RELAX_TOLERANCE_M:
+            break

@@ -51,7 +51,7 @@ from planner.adaptation import (
 )
 from planner.period_plan import PeriodPlanner
 from planner.repose_bank import ReposeBank
-from planner.surface_estimate import SurfaceEstimate
+from planner.surface_estimate import Relax, SurfaceEstimate
 from plant_models.geometry import Unreachable, forward_kinematics
 
 SURFACE_CELLS = 240
@@ -111,11 +111,14 @@ class TerrainAdaptation:
 
     planner: plans (and checks the reach of) the period through a D (its geometry and path
     shape give the forward kinematics and the nominal surface). defaults: D0, dy_0 (dz_0 is
-    not used: the depth comes from the prediction). target_mass_kg: m* (kg, > 0).
+    not used: the depth comes from the prediction). target_mass_kg: m* (kg, > 0). relax: the
+    slump kernel (planner.surface_estimate.Relax; None: the numpy one; a compiled one gives
+    the same bits and decisions, several times faster).
     """
 
     def __init__(self, planner: PeriodPlanner, defaults: AdaptationDefaults,
-                 target_mass_kg: float, settings: TerrainSettings) -> None:
+                 target_mass_kg: float, settings: TerrainSettings,
+                 relax: Relax | None = None) -> None:
         if not (math.isfinite(target_mass_kg) and target_mass_kg > 0.0):
             raise ValueError(f"target_mass_kg must be a finite mass > 0 kg, got "
                              f"{target_mass_kg!r}")
@@ -132,7 +135,8 @@ class TerrainAdaptation:
         self._cautious = False
         self._planned_D: tuple[float, float] | None = None
         self._envelopes: dict[tuple[float, float], np.ndarray | None] = {}
-        self.bank = ReposeBank(surface, angles, assumed, math.radians(REPOSE_PRIOR_SIGMA_DEG))
+        self.bank = ReposeBank(surface, angles, assumed, math.radians(REPOSE_PRIOR_SIGMA_DEG),
+                               relax)
 
     def initial(self) -> Decision:
         """Period 1 at D0 (or after the shift, if D0 is out of reach)."""

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 
+from orchestrator.campaign.native_slump import native_relax
 from orchestrator.scenario.model import Scenario
 from planner.adaptation import RuleAdaptation
 from planner.period_plan import PeriodPlanner
@@ -27,6 +28,6 @@ def adaptation_strategy(scenario: Scenario,
         settings = TerrainSettings(repose_angle_rad=math.radians(a.assumed_repose_angle_deg),
                                    weighing_sigma_kg=scenario.plant.load_cell_noise_kg)
         return TerrainAdaptation(planner, scenario.adaptation_defaults(),
-                                 scenario.target_mass_kg, settings)
+                                 scenario.target_mass_kg, settings, relax=native_relax())
     return RuleAdaptation(scenario.adaptation_rule(), scenario.adaptation_defaults(),
                           scenario.target_mass_kg, planner.reachable)
