@@ -28,7 +28,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import fmus  # noqa: E402
-from fmus.runs import FastSlave, load_ecospy  # noqa: E402
+from fmus.ecos_runs import load_ecospy  # noqa: E402
+from fmus.runs import FastSlave  # noqa: E402
 
 STEP = 1e-3  # communication step, s
 N_STEPS = {"HydraulicCylinder": 20000}

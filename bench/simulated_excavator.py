@@ -25,7 +25,8 @@ import numpy as np
 # The repository instead of bench/ on the path: a bench script must not shadow a module.
 sys.path[0] = str(Path(__file__).resolve().parents[1])
 
-from fmus.runs import FastSlave, load_ecospy  # noqa: E402
+from fmus.ecos_runs import load_ecospy  # noqa: E402
+from fmus.runs import FastSlave  # noqa: E402
 from orchestrator.plants.master import fmu_path  # noqa: E402
 from orchestrator.plants.simulated_excavator import SimulatedExcavator  # noqa: E402
 from planner.digging_path import paper_joint_via_points  # noqa: E402

@@ -1,14 +1,13 @@
 """Run one FMU over an input series under fmpy (fast low-level path) or under the ecos master.
 
-Both runners do the same thing, so their results can be compared value for value:
+run_fmpy and fmus.ecos_runs.run_ecospy do the same thing, so their results can be compared value
+for value:
 start values (parameters, and the inputs' first samples) are set before initialization; then,
 for k = 0..n-1, the inputs' k-th samples are set and the FMU steps from t_k = k*h to t_k + h.
 Outputs come back as arrays of shape (n + 1,): sample 0 after initialization, sample k after
 step k. Only Real (FMI 3.0: Float64) inputs and outputs are exchanged; start values may be of
 any real, integer or boolean type. FastSlave and run_fmpy take FMI 2.0 and FMI 3.0
 co-simulation FMUs alike.
-
-run_ecospy needs the `ecospy` and `tbb` packages (test extra); it loads libtbb itself.
 """
 
 from __future__ import annotations
@@ -18,10 +17,10 @@ import functools
 import itertools
 import re
 import shutil
-import sys
 import tempfile
 import weakref
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -29,8 +28,7 @@ import numpy as np
 from fmus import fast_step
 from fmus.fmu_messages import recording_callbacks_2, recording_logger_3
 
-__all__ = ["run_fmpy", "run_ecospy", "load_ecospy", "FastSlave", "fmi_major", "value_kind",
-           "REAL_TYPES"]
+__all__ = ["run_fmpy", "FastSlave", "NativeStep", "fmi_major", "value_kind", "REAL_TYPES"]
 
 REAL_TYPES = ("Real", "Float64")  # the FMI 2.0 and FMI 3.0 names of a double
 _INTEGER = re.compile(r"^(Integer|U?Int(8|16|32|64))$")
@@ -80,6 +78,28 @@ def _typed_start_values(description, start_values: Mapping[str, float]) -> dict:
 STEP_CODES: weakref.WeakSet = weakref.WeakSet()
 _SERIALS = itertools.count()  # one number per FastSlave construction
 STEP_NAME = re.compile(r"\bstep\[(?P<label>[^\]]*)\]")  # a step's code name in a dump
+
+
+@dataclass(frozen=True)
+class NativeStep:
+    """A FastSlave's step for a loop in C: `function(call, t, h)` (int, fmus/fast_step's
+    fmi2_step or fmi3_step) at `function_address`, with `call_address` its bound StepCall;
+    `label` names the instance ("boom (HydraulicCylinder)"); `failure(code, t)` is the
+    RuntimeError step() raises for the nonzero code a step at t (s) returned."""
+
+    function_address: int
+    call_address: int
+    label: str
+    failure: Callable[[int, float], RuntimeError]
+
+
+def _one_call_failure(label: str, calls: tuple[str, str, str], last_error: list,
+                      code: int, t: float) -> RuntimeError:
+    failed = code >> 8  # which call (fmi2_step.c): 1 set, 2 step, 3 get, 4 terminate asked
+    if failed == 4:
+        return RuntimeError(f"{label} asked to terminate the simulation at t = {t}")
+    said = f": {last_error[0]}" if last_error[0] else ""
+    return RuntimeError(f"{label}: {calls[failed - 1]} failed at t = {t}{said}")
 
 
 class FastSlave:
@@ -151,6 +171,8 @@ class FastSlave:
         fmi2GetReal here). FMI 3.0's fmi3SetFloat64 / fmi3GetFloat64 take the value count as
         well, and fmi3DoStep four result flags (pre-allocated here)."""
         dll, version = self.slave.dll, self.fmi_version
+        self.native_step: NativeStep | None = None
+        """The one-call step for a loop in C (NativeStep), None without fmus.fast_step."""
         names = ("fmi2SetReal", "fmi2GetReal", "fmi2DoStep") if version == 2 else \
             ("fmi3SetFloat64", "fmi3GetFloat64", "fmi3DoStep")
         self._names = names
@@ -193,7 +215,10 @@ class FastSlave:
                 ctypes.addressof(vr_out), len(outputs), self._out.ctypes.data)
             one_call = fast.fmi2_step if version == 2 else fast.fmi3_step
             bound = ctypes.c_void_p(ctypes.addressof(self._fast))
-            failing = (set_name, step_name, get_name)
+            failure = functools.partial(_one_call_failure, label,
+                                        (set_name, step_name, get_name), last_error)
+            self.native_step = NativeStep(ctypes.cast(one_call, ctypes.c_void_p).value,
+                                          bound.value, label, failure)
 
             # `component` a local of the frame, as in the other paths: the step watchdog
             # identifies the instance by it (orchestrator.campaign.watchdog.stuck_step).
@@ -201,11 +226,9 @@ class FastSlave:
                      component=component) -> np.ndarray:
                 if values is not None:
                     inputs[:] = values
-                failed = one_call(bound, t, h) >> 8  # which call (fmi2_step.c)
-                if failed == 4:
-                    raise RuntimeError(f"{label} asked to terminate the simulation at t = {t}")
-                if failed:
-                    raise RuntimeError(f"{label}: {failing[failed - 1]} failed at t = {t}{said()}")
+                code = one_call(bound, t, h)
+                if code:
+                    raise failure(code, t)
                 return out
         elif version == 2:
             def step(t: float, h: float, values: np.ndarray | None = None) -> np.ndarray:
@@ -247,6 +270,27 @@ class FastSlave:
         self.step = step
         """step(t, h, values=None): set the inputs to `values` (or use `self.inputs` as it is),
         step from t (s) by h (s), return the outputs (the internal buffer)."""
+
+    def run(self, inputs: np.ndarray, h: float, t0: float = 0.0) -> np.ndarray:
+        """Step len(inputs) times from t0 (s) by h (s), step k with row k of `inputs` (n,
+        n_inputs): the outputs after each step, (n, n_outputs). One foreign call where the
+        one-call step serves (fmus/fast_step/steps.c; no Python frame per step, so the step
+        watchdog does not see into it), else step by step; the same numbers either way."""
+        series = np.ascontiguousarray(inputs, dtype=float)
+        if series.ndim != 2 or series.shape[1] != len(self.inputs):
+            raise ValueError(f"inputs must be (n, {len(self.inputs)}), got {series.shape}")
+        result = np.empty((len(series), len(self._out)))
+        if self.native_step is None:
+            for k, row in enumerate(series):
+                result[k] = self.step(t0 + k * h, h, row)
+            return result
+        done = ctypes.c_long(0)
+        code = fast_step.library().fmi_steps(
+            self.native_step.function_address, self.native_step.call_address,
+            series.ctypes.data, result.ctypes.data, len(series), t0, h, ctypes.byref(done))
+        if code:
+            raise self.native_step.failure(code, t0 + done.value * h)
+        return result
 
     def _initialize(self, variables: dict, start_values: Mapping[str, float]) -> None:
         self._last_error = [""]  # the FMU's last error message, for the step's error
@@ -343,57 +387,5 @@ def run_fmpy(fmu: str | Path, inputs: Mapping[str, np.ndarray], outputs: Sequenc
     result = np.empty((n + 1, len(outputs)))
     with FastSlave(fmu, list(inputs), list(outputs), start) as slave:
         result[0] = slave.outputs()
-        for k in range(n):
-            result[k + 1] = slave.step(k * step_size, step_size, series[k])
-    return {name: result[:, i] for i, name in enumerate(outputs)}
-
-
-def load_ecospy():
-    """Import ecospy, first loading libtbb from the environment's lib folder (global symbols)."""
-    if "ecospy" not in sys.modules:
-        for folder in (Path(sys.prefix) / "lib", Path(sys.base_prefix) / "lib"):
-            candidates = sorted(folder.glob("libtbb.so.*"))
-            if candidates:
-                ctypes.CDLL(str(candidates[0]), mode=ctypes.RTLD_GLOBAL)
-                break
-    import ecospy
-
-    return ecospy
-
-
-def run_ecospy(fmu: str | Path, inputs: Mapping[str, np.ndarray], outputs: Sequence[str],
-               step_size: float, start_values: Mapping[str, float] | None = None
-               ) -> dict[str, np.ndarray]:
-    """Same as run_fmpy, with the ecos co-simulation master stepping the FMU."""
-    from fmpy import read_model_description
-
-    ecospy = load_ecospy()
-    ecospy.EcosLib.set_log_level("warn")
-    n = _check_series(inputs)
-    description = read_model_description(str(fmu))
-    start = {**{k: float(s[0]) for k, s in inputs.items()}, **dict(start_values or {})}
-    typed = _typed_start_values(description, start)
-    result = np.empty((n + 1, len(outputs)))
-    structure = ecospy.EcosSimulationStructure()
-    try:
-        structure.add_model("fmu", str(fmu))
-        structure.add_parameter_set("start", {f"fmu::{k}": v for k, v in typed.items()})
-        sim = ecospy.EcosSimulation(structure=structure, step_size=step_size)
-        try:
-            if not sim.init(parameter_set="start"):
-                raise RuntimeError(f"ecos failed to initialize: {ecospy.EcosLib.get_last_error()}")
-            in_ids = [f"fmu::{name}" for name in inputs]
-            out_ids = [f"fmu::{name}" for name in outputs]
-            columns = [np.asarray(s, dtype=float) for s in inputs.values()]
-            result[0] = [sim.get_real(i) for i in out_ids]
-            for k in range(n):
-                for identifier, column in zip(in_ids, columns, strict=True):
-                    sim.set_real(identifier, float(column[k]))
-                sim.step()
-                result[k + 1] = [sim.get_real(i) for i in out_ids]
-            sim.terminate()
-        finally:
-            sim.free()
-    finally:
-        structure.free()
+        result[1:] = slave.run(series, step_size)
     return {name: result[:, i] for i, name in enumerate(outputs)}

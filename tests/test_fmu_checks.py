@@ -7,7 +7,8 @@ from fmpy import extract, read_model_description
 from fmpy.validation import validate_fmu
 
 import fmus
-from fmus.runs import FastSlave, run_ecospy, run_fmpy
+from fmus.ecos_runs import run_ecospy
+from fmus.runs import FastSlave, run_fmpy
 
 N_STEPS = 1000
 

@@ -1,7 +1,9 @@
 """The per-step coupling in C (orchestrator.plants.native) against the Python loop it replaces
 (orchestrator.plants.coupling_loop): the same campaign through either gives the same bits, in
 every signal, joint angle, weighing and resume state, on the load-sensing pump and on the
-constant supply, with the arm held after a lagging period; a plant the C coupling cannot serve
+constant supply, with the arm held after a lagging period; the loop in C that steps the FMUs
+itself gives the bits of the FMUs stepped from Python, an FMU's failure there reads as it
+does from Python, and its board names the FMU in a step; a plant the C coupling cannot serve
 (a linear servo) runs the Python loop and says why; the library builds byte-reproducibly."""
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from orchestrator.campaign import run_campaign
 from orchestrator.plants import simulated_excavator
 from orchestrator.plants.coupling_loop import PythonCoupling
 from orchestrator.plants.native import NativeCoupling
+from orchestrator.plants.native.board import Board, stepping_after_death
 from orchestrator.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -114,3 +117,59 @@ def test_the_c_coupling_refuses_references_it_would_read_past():
             loop.track(good, np.zeros((3, 3)), good, 37, 0, 0.0)
         with pytest.raises(ValueError, match="signal columns"):
             loop.track(good, good, good, 34, 0, 0.0)
+
+
+def test_the_loop_in_c_gives_the_bits_of_the_fmus_stepped_from_python(monkeypatch):
+    ran = []
+    in_c, in_python = NativeCoupling._run_in_c, NativeCoupling._run_in_python
+
+    def counted(name, run):
+        def wrapper(self, *args):
+            ran.append(name)
+            return run(self, *args)
+        return wrapper
+
+    monkeypatch.setattr(NativeCoupling, "_run_in_c", counted("c", in_c))
+    c = campaign(monkeypatch, True, PAPER, ["periods=3"])
+    assert set(ran) == {"c"}
+    ran.clear()
+    monkeypatch.setattr(NativeCoupling, "_run_in_c", counted("python", in_python))
+    python = campaign(monkeypatch, True, PAPER, ["periods=3"])
+    assert set(ran) == {"python"}
+    assert_same_bits(c["measurements"], python["measurements"])
+    assert c["states"] == python["states"]
+
+
+def test_an_fmu_failing_in_the_loop_in_c_reads_as_from_python(tmp_path, monkeypatch):
+    from faulty_fmus import FAIL, patched_cylinder
+
+    failing = patched_cylinder(tmp_path, FAIL, 2.0, "Failing")
+    overrides = ["periods=1", f"plant.stick.fmu={failing}"]
+    messages = []
+    for run in (NativeCoupling._run_in_c, NativeCoupling._run_in_python):
+        monkeypatch.setattr(NativeCoupling, "_run_in_c", run)
+        messages.append(run_campaign(load_scenario(PAPER, overrides)).message)
+    assert messages[0] == messages[1]
+    assert "stick (HydraulicCylinder): fmi2DoStep failed at t = 2.0" in messages[0]
+    assert "a burst hose" in messages[0]
+
+
+def test_the_board_names_the_fmu_in_a_step_and_goes_with_the_plant(tmp_path, monkeypatch):
+    from orchestrator.campaign.loop import build_plant
+
+    labels = ["boom (A)", "stick (B)", "bucket (C)", "pile (D)"]
+    monkeypatch.setattr("tempfile.tempdir", str(tmp_path))
+    board = Board(labels)
+    assert board.reading() is None and stepping_after_death(tmp_path) is None
+    board.layout.which, board.layout.t = 2, 1.25  # as coupling.c writes it before a step
+    assert board.reading() == (2, 1.25, "bucket (C)")
+    assert stepping_after_death(tmp_path) == (1.25, "bucket (C)")  # from the file, as a parent
+    board.close()
+    board.close()
+    assert stepping_after_death(tmp_path) is None and not any(tmp_path.iterdir())
+    with build_plant(load_scenario(PAPER, ["periods=1"])) as plant:
+        middle = [0.5 * table.stroke_m for table in plant.coupling.tables]
+        plant._start(np.array(plant.coupling.kinematics(*middle)[:3]))
+        folder = plant._loop.temporary_folders()[0]
+        assert folder in plant.temporary_folders() and Path(folder, "board").is_file()
+    assert not Path(folder).exists()

@@ -1,5 +1,6 @@
 """fmi2_step.c and fmi3_step.c bound with ctypes: one foreign call per FMI 2.0 or 3.0 step
-(fmus.runs.FastSlave).
+(fmus.runs.FastSlave); steps.c: n steps of one FMU over an input series in one call
+(FastSlave.run).
 
 `library()` builds them on first use (fmus.shared_library: the FMUs' gcc and flags, cached
 beside them) and returns the loaded library, or None when it cannot be had (no gcc): FastSlave
@@ -32,7 +33,7 @@ def library() -> ctypes.CDLL | None:
 
     try:
         path = build_library("fast_step", Path(__file__).resolve().parent,
-                             ("fmi2_step.c", "fmi3_step.c"))
+                             ("fmi2_step.c", "fmi3_step.c", "steps.c"))
     except BuildError:
         return None
     loaded = ctypes.CDLL(str(path))
@@ -42,4 +43,7 @@ def library() -> ctypes.CDLL | None:
         function = getattr(loaded, f"fmi{version}_step")
         function.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double]
         function.restype = ctypes.c_int
+    loaded.fmi_steps.argtypes = [ctypes.c_void_p] * 4 + [ctypes.c_long, ctypes.c_double,
+                                                         ctypes.c_double, ctypes.c_void_p]
+    loaded.fmi_steps.restype = ctypes.c_int
     return loaded

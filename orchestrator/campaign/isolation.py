@@ -9,8 +9,10 @@ file, the parent waits. When the child ends without handing an outcome back, the
 
 - names the cause: the signal, or the exit status of an `exit()`; and the FMU. A fatal signal's
   faulthandler dump names it: each FMU instance's step function carries the instance's name
-  (fmus.runs.STEP_NAME); an `exit()` is caught by a C `atexit` handler that reads the step's
-  frame as the step watchdog does (orchestrator.campaign.watchdog.stuck_step);
+  (fmus.runs.STEP_NAME); the step loop in C has no frame per FMU step, and its board, a file
+  in the child's temporary folder, names the FMU it was stepping
+  (orchestrator.plants.native.board); an `exit()` is caught by a C `atexit` handler that reads
+  the step's frame as the step watchdog does (orchestrator.campaign.watchdog.stuck_step);
 - closes the log (orchestrator.runlog.resume.close_unfinished): its whole periods and the end
   record termination "error" with that reason, so it is indexed, readable by any MCAP reader and
   can be resumed (`excosim run --resume`);
@@ -197,6 +199,7 @@ def _note_exit_calls(crash) -> None:
 
 def _died(status: int, crash: Path, log_path: Path, period_offset: int) -> ChildDied:
     from fmus.runs import STEP_NAME
+    from orchestrator.plants.native.board import stepping_after_death
     from orchestrator.runlog.reader import RunLogError
     from orchestrator.runlog.resume import close_unfinished
 
@@ -225,6 +228,10 @@ def _died(status: int, crash: Path, log_path: Path, period_offset: int) -> Child
         if line.rstrip().endswith(" in __init__") and "fmus/runs.py" in line:
             where = " while an FMU was loaded and initialized"
             break
+    if not where:  # the step loop in C leaves no frame per FMU step: its board names it
+        stepping = stepping_after_death(crash.parent / "tmp")
+        if stepping is not None:
+            where = f" in the step of FMU {stepping[1]}"
     try:
         from orchestrator.runlog.reader import read_run
 

@@ -3,7 +3,9 @@
 An FMU step is native code: Python cannot interrupt it, and one that never returns hangs the run
 with no word. The watchdog is a daemon thread that looks at the main thread's innermost Python
 frame every `poll_s` (sys._current_frames): while an FMU steps, that frame is a FastSlave's step
-function (fmus.runs.STEP_CODES; ctypes releases the GIL during the call, so the thread runs). A
+function (fmus.runs.STEP_CODES), or the step loop in C, whose board names the FMU it is
+stepping (orchestrator.plants.native.board); ctypes releases the GIL during the call, so the
+thread runs. A
 step is identified by its instance and its start time `t` (each instance's time only grows), so
 the same (instance, t) seen for `timeout_s` is one step that did not return. The loading and
 initialization of an instance (FastSlave's constructor: dlopen, fmi2Instantiate, the
@@ -28,11 +30,13 @@ from types import FrameType
 
 def stuck_step(frame: FrameType | None) -> tuple[int, float, str] | None:
     """(id of the instance, step start time t (s), "instance (model)") when `frame` is an FMU
-    step (a FastSlave's step function, fmus.runs.STEP_CODES), else None."""
+    step (a FastSlave's step function, fmus.runs.STEP_CODES) or the step loop in C while it
+    steps an FMU (its board: orchestrator.plants.native.board), else None."""
     from fmus.runs import STEP_CODES
+    from orchestrator.plants.native.board import stepping_in
 
     if frame is None or frame.f_code not in STEP_CODES:
-        return None
+        return stepping_in(frame)
     local = frame.f_locals  # the main thread is in C with the GIL released: a stable snapshot
     component, t, label = local.get("component"), local.get("t"), local.get("label")
     if component is None or not isinstance(t, int | float):

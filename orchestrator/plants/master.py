@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fmus.runs import REAL_TYPES, FastSlave, fmi_major
+from fmus.runs import REAL_TYPES, FastSlave, NativeStep, fmi_major
 from orchestrator.plants.derived import DerivedOutput, derive_outputs
 from plant_models.model_spec import (
     CYLINDER_INPUTS,
@@ -234,11 +234,15 @@ class Component:
         self.conversions = dict(conversions or {})
         """role -> PortMap of the ports converted between the FMU's units and SI."""
         self._refresh = self._slave.outputs  # refills `outputs` from the FMU
+        self.native_step: NativeStep | None = None
         if not (self.missing_outputs or self.missing_inputs or self.conversions or self.derived):
             self.outputs: np.ndarray = self._slave.outputs()
             """(n_outputs,) buffer, role output order, refreshed by every step()."""
             self.step = self._slave.step
             """step(t_s, h_s): set the inputs, step from t_s by h_s, refresh `outputs`."""
+            self.native_step = self._slave.native_step
+            """The same step for a loop in C (fmus.runs.NativeStep), None where there is
+            none (no fmus.fast_step; a component converting ports steps through Python)."""
         else:  # copies in role layout and SI units: only for FMUs that need them
             self.inputs = np.zeros(len(input_roles))
             self.outputs = np.full(len(output_roles), np.nan)
@@ -298,7 +302,7 @@ class Component:
         """Terminate and free the instance; safe twice. Stepping afterwards is a RuntimeError
         (not a call into freed memory)."""
         self._slave.close()
-        self.step = self._closed
+        self.step, self.native_step = self._closed, None
 
     def _closed(self, *args) -> None:
         raise RuntimeError(f"{self.name}: the FMU instance is closed")

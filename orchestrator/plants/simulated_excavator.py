@@ -17,8 +17,9 @@ One communication step h from t_k (the reference is interpolated onto the grid t
    supply it models itself); the cylinders step from t_k to t_k + h with command, load and
    supply held.
 
-Steps 1-3 run in C (orchestrator.plants.native) where it can serve, else in Python
-(orchestrator.plants.coupling_loop), with the same bits; the FMUs are stepped from Python.
+Steps 1-3 run in C (orchestrator.plants.native) where it can serve, with the FMUs stepped from
+C too where each has a one-call step, else in Python (orchestrator.plants.coupling_loop), with
+the same bits.
 
 At the end of a period the load cell reads the Pile's bucket mass (plus Gaussian noise from one
 generator seeded per plant), then the Pile steps once more with `dump` high and the bucket
@@ -225,13 +226,15 @@ class SimulatedExcavator(ResumableState):
         """The folders the FMUs are extracted into (removed by close()); for a clean-up that
         cannot close the FMUs (one of them is stuck in a step: orchestrator.campaign.watchdog)."""
         folders = getattr(self._master, "_unzip_dirs", None) or {}
-        return list(folders.values())
+        board = getattr(getattr(self, "_loop", None), "temporary_folders", list)()
+        return list(folders.values()) + board
 
     def close(self) -> None:
         """Free every FMU instance; safe twice."""
         self._closed = True
         if self._master is not None:
             self._master.close()
+        getattr(getattr(self, "_loop", None), "close", lambda: None)()
 
     def __enter__(self) -> SimulatedExcavator:
         return self

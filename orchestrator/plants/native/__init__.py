@@ -3,8 +3,13 @@
 `NativeCoupling(...)` packs what the plant's Python loop reads per step (the arm coupling's
 stroke tables and geometry, the arm inertia, the servos' constants and filter states, the
 pump's law) into coupling.c's struct once; `track(strokes, rates, accelerations, ...)` then
-runs a period's steps: per step one call before the Pile's step and one after it, the four FMU
-steps in Python between them as before. It gives the same bits as the Python loop
+runs a period's steps in one call of coupling.c's loop, which steps the four FMUs itself
+through their one-call steps (fmus.runs.NativeStep): Python's per-step work (six foreign calls
+and the loop) was about 4 us of a step's 16. The loop keeps a board of the FMU in a step
+(orchestrator.plants.native.board), so that a stuck or crashing FMU is still named. Where an
+FMU has no one-call step (no fmus.fast_step; a component that converts its ports steps
+through Python), the steps run in Python with one call to the coupling before the Pile's step
+and one after it. Either way it gives the same bits as the Python loop
 (orchestrator.plants.coupling_loop.PythonCoupling; tests/test_native_coupling.py).
 
 `unavailable(servos)` says why the C coupling cannot serve (one line), None when it can: it
@@ -25,6 +30,7 @@ import numpy as np
 from orchestrator.plants.arm_coupling import ArmCoupling
 from orchestrator.plants.arm_dynamics import ArmInertia
 from orchestrator.plants.master import Master
+from orchestrator.plants.native.board import LOOP_CODES, Board
 from plant_models.geometry import GRAVITY_M_S2
 from plant_models.servo import JointServo
 
@@ -64,6 +70,15 @@ class _Coupling(ctypes.Structure):
     ]
 
 
+class _Loop(ctypes.Structure):
+    _fields_ = [("step", ctypes.c_void_p * 4), ("call", ctypes.c_void_p * 4),
+                ("h", ctypes.c_double), ("steps", ctypes.c_long),
+                ("pile_time", ctypes.c_double), ("board", ctypes.c_void_p)]
+
+
+_ORDER = ("boom", "stick", "bucket", "pile")  # coupling.c's Loop and Board
+
+
 @lru_cache(maxsize=1)
 def _library() -> ctypes.CDLL | str:
     """The built library, or why it cannot be had (one line)."""
@@ -76,16 +91,18 @@ def _library() -> ctypes.CDLL | str:
         return str(error).splitlines()[0]
     library = ctypes.CDLL(str(path))
     library.coupling_size.restype = ctypes.c_long
-    offsets = (ctypes.c_long * 9)()
+    offsets = (ctypes.c_long * 12)()
     library.coupling_offsets(offsets)
     expected = [getattr(_Coupling, f).offset for f in ("n", "table", "lengths", "servo",
                                                        "supplied", "pose")] \
-        + [_Servo.compensated.offset, _Servo.has_last.offset, _Table.inv_dx.offset]
+        + [_Servo.compensated.offset, _Servo.has_last.offset, _Table.inv_dx.offset,
+           ctypes.sizeof(_Loop), _Loop.pile_time.offset, _Loop.board.offset]
     if library.coupling_size() != ctypes.sizeof(_Coupling) or list(offsets) != expected:
         return "coupling.c's struct and its binding disagree (rebuild the library)"
     # No argtypes: ctypes then passes the pre-built pointer object as it is (FastSlave).
     library.coupling_before_pile.restype = ctypes.c_int
     library.coupling_after_pile.restype = None
+    library.coupling_run.restype = ctypes.c_long
     return library
 
 
@@ -148,6 +165,32 @@ class NativeCoupling:
         address = ctypes.addressof(c)
         self._before = _bound(self._library.coupling_before_pile, address)
         self._after = _bound(self._library.coupling_after_pile, address)
+        steps = [master[name].native_step for name in _ORDER]
+        self._board: Board | None = None
+        self.loop_note: str | None = None
+        """Why the FMUs are stepped from Python (one line), None when coupling.c's loop
+        steps them."""
+        if any(step is None for step in steps):
+            self.loop_note = "an FMU has no one-call step (no fmus.fast_step, or its " \
+                "component converts ports): the FMUs step from Python"
+            return
+        self._board = Board([step.label for step in steps])
+        loop = _Loop()
+        loop.step[:] = [step.function_address for step in steps]
+        loop.call[:] = [step.call_address for step in steps]
+        loop.h, loop.board = self._step_s, self._board.address()
+        self._loop, self._native_steps = loop, tuple(steps)
+        self._run = functools.partial(self._library.coupling_run, ctypes.c_void_p(address),
+                                      ctypes.c_void_p(ctypes.addressof(loop)))
+
+    def temporary_folders(self) -> list[str]:
+        """The board's folder (orchestrator.plants.native.board), if there is one."""
+        return [] if self._board is None else [self._board.folder]
+
+    def close(self) -> None:
+        """Remove the board; safe twice."""
+        if self._board is not None:
+            self._board.close()
 
     def track(self, strokes: np.ndarray, rates: np.ndarray, accelerations: np.ndarray,
               n_columns: int, steps: int, pile_time: float) -> tuple[np.ndarray, np.ndarray,
@@ -176,15 +219,38 @@ class NativeCoupling:
             filtered, last = servo.state()
             c.servo[i].filtered, c.servo[i].has_last = filtered, last is not None
             c.servo[i].last = 0.0 if last is None else last
+        in_c = self._board is not None \
+            and all(self._master[name].native_step is step
+                    for name, step in zip(_ORDER, self._native_steps, strict=True))
+        run = self._run_in_c if in_c else self._run_in_python
+        steps, pile_time = run(n, steps, pile_time)
+        return rows, joints, steps, pile_time
+
+    def _run_in_c(self, n: int, steps: int, pile_time: float) -> tuple[int, float]:
+        """coupling.c's loop over the n steps: (step count, Pile time s) after them."""
+        loop = self._loop
+        board = self._board  # a local: the step watchdog reads it from this frame (board.py)
+        loop.steps, loop.pile_time = steps, pile_time
+        try:
+            code = self._run()
+        finally:
+            self._keep_state(loop.steps, loop.pile_time)
+        if code == 1:
+            raise self._not_finite()
+        if code:
+            raise self._native_steps[(code >> 16) - 1].failure(code & 0xffff,
+                                                               board.layout.t)
+        return self.clock
+
+    def _run_in_python(self, n: int, steps: int, pile_time: float) -> tuple[int, float]:
+        """The n steps with the FMUs stepped from Python between the coupling's two calls."""
         master, h = self._master, self._step_s
-        boom, stick, bucket, pile = (master[n].step for n in ("boom", "stick", "bucket", "pile"))
+        boom, stick, bucket, pile = (master[name].step for name in _ORDER)
         before, after = self._before, self._after
         try:
             for _ in range(n):
                 if before():
-                    raise ValueError("a cylinder's stroke is not finite: "
-                                     + ", ".join(f"{name} {master[name].outputs[0]!r}" for name
-                                                 in ("boom", "stick", "bucket")))
+                    raise self._not_finite()
                 pile(pile_time, h)
                 pile_time += h
                 after()
@@ -194,11 +260,22 @@ class NativeCoupling:
                 bucket(t, h)
                 steps += 1
         finally:
-            for i, servo in enumerate(self._servos):
-                state = c.servo[i]
-                servo.set_state(state.filtered, state.last if state.has_last else None)
-            self.clock = steps, pile_time
-        return rows, joints, steps, pile_time
+            self._keep_state(steps, pile_time)
+        return self.clock
+
+    def _keep_state(self, steps: int, pile_time: float) -> None:
+        """The servos' filter states back from the struct, and the clock reached."""
+        for i, servo in enumerate(self._servos):
+            state = self._c.servo[i]
+            servo.set_state(state.filtered, state.last if state.has_last else None)
+        self.clock = steps, pile_time
+
+    def _not_finite(self) -> ValueError:
+        return ValueError("a cylinder's stroke is not finite: " + ", ".join(
+            f"{name} {self._master[name].outputs[0]!r}" for name in ("boom", "stick", "bucket")))
+
+
+LOOP_CODES.add(NativeCoupling._run_in_c.__code__)
 
 
 def _servo_into(servo: JointServo, out: _Servo) -> None:

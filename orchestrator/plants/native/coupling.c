@@ -13,9 +13,11 @@
  *     p_pump and p_LS (plant_models.supply.LoadSensingPump.law) -> the cylinders' inputs, and
  *     the step's row of signals and joint angles.
  *
- * The FMUs themselves are stepped by the Python loop between the two calls, through the same
- * entry points as always (fmus.runs.FastSlave): their errors, the step watchdog and the crash
- * reports name the FMU as before. Units: SI (m, rad, N, kg, Pa, s).
+ * coupling_run runs a whole stroke reference: per step before_pile, the Pile's step, after_pile
+ * and the three cylinders' steps, each FMU through its one-call step (fmus/fast_step, as
+ * fmus.runs.FastSlave steps it from Python), in the Python loop's order and with its times. It
+ * keeps a board of the FMU in a step and its t, which the step watchdog and a crash report
+ * read to name the FMU (orchestrator.plants.native). Units: SI (m, rad, N, kg, Pa, s).
  */
 #include <math.h>
 #include <stddef.h>
@@ -298,6 +300,52 @@ EXPORT void coupling_after_pile(Coupling *c) {
     c->k += 1;
 }
 
+typedef int (*StepFunction)(const void *call, double t, double h);
+
+typedef struct {
+    volatile long which; /* the FMU in a step (0 boom, 1 stick, 2 bucket, 3 pile), -1: none */
+    volatile double t;   /* that step's start time, s */
+} Board;
+
+typedef struct {
+    StepFunction step[4]; /* boom, stick, bucket, pile: fmi2_step or fmi3_step */
+    const void *call[4];  /* their bound calls (fmus.fast_step.StepCall) */
+    double h;             /* communication step, s */
+    long steps;           /* the plant's step count: a cylinder steps from steps * h */
+    double pile_time;     /* the Pile's clock, s (it steps once more per dump) */
+    Board *board;
+} Loop;
+
+static long step_fmu(Loop *loop, int i, double t)
+{
+    loop->board->t = t;
+    loop->board->which = i;
+    const int code = loop->step[i](loop->call[i], t, loop->h);
+    loop->board->which = -1;
+    return code ? ((long)(i + 1) << 16) | (code & 0xffff) : 0;
+}
+
+/* The steps k..n-1 of the stroke reference: 0 when all ran; 1 when a stroke is not finite
+ * (nothing of that step done); (1 + FMU index) << 16 | its step's code when an FMU's step
+ * failed (its t stays on the board). steps and pile_time advance as each step completes. */
+EXPORT long coupling_run(Coupling *c, Loop *loop)
+{
+    while (c->k < c->n) {
+        if (coupling_before_pile(c)) return 1;
+        long code = step_fmu(loop, 3, loop->pile_time);
+        if (code) return code;
+        loop->pile_time += loop->h;
+        coupling_after_pile(c);
+        const double t = (double)loop->steps * loop->h;
+        for (int i = 0; i < 3; i++) {
+            code = step_fmu(loop, i, t);
+            if (code) return code;
+        }
+        loop->steps += 1;
+    }
+    return 0;
+}
+
 /* The layout check of the binding: sizeof(Coupling) and the offsets of its parts as this
  * compiler lays them out. */
 EXPORT long coupling_size(void) { return (long)sizeof(Coupling); }
@@ -308,4 +356,6 @@ EXPORT void coupling_offsets(long *out) {
     out[4] = (long)offsetof(Coupling, supplied), out[5] = (long)offsetof(Coupling, pose);
     out[6] = (long)offsetof(Servo, compensated), out[7] = (long)offsetof(Servo, has_last);
     out[8] = (long)offsetof(Table, inv_dx);
+    out[9] = (long)sizeof(Loop), out[10] = (long)offsetof(Loop, pile_time);
+    out[11] = (long)offsetof(Loop, board);
 }
