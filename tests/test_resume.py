@@ -2,12 +2,12 @@
 gives the log of the uninterrupted run, message for message.
 
 The reference is a 5-period paper campaign with load-cell noise and a seed (so the noise
-generator's restore is tested). The kills are real (a subprocess ended by SIGKILL once its log
-holds two periods) and simulated (the log's bytes cut inside a period's chunk, inside its
-message indexes, at its end); an interrupt is a KeyboardInterrupt after a period. Compared:
-every message of every channel (topic, sequence, log time, bytes) through the `mcap` package's
-indexed reader, the period records without their planner wall time, exactly (stronger than
-the 1e-9 asked for masses, D and durations).
+generator's restore is tested). The kills are real (a subprocess of a 14-period run ended by
+SIGKILL once its log holds two periods) and simulated (the log's bytes cut inside a period's
+chunk, inside its message indexes, at its end); an interrupt is a KeyboardInterrupt after a
+period. Compared: every message of every channel (topic, sequence, log time, bytes) through the
+`mcap` package's indexed reader, the period records without their planner wall time, exactly
+(stronger than the 1e-9 asked for masses, D and durations).
 """
 
 from __future__ import annotations
@@ -92,10 +92,10 @@ def _messages(path: str, *identity) -> list[tuple[str, int, int, bytes]]:
     return out
 
 
-def assert_same_run(resumed: Path, full: Path, resumes: int = 1) -> None:
+def assert_same_run(resumed: Path, full: Path, resumes: int = 1, periods: int = PERIODS) -> None:
     a, b = read_run(resumed), read_run(full)
     assert a.finished and a.termination == b.termination == "periods"
-    assert len(a.periods) == len(b.periods) == PERIODS
+    assert len(a.periods) == len(b.periods) == periods
     for mine, theirs in zip(a.periods, b.periods, strict=True):
         for key in ("mass_kg", "error_kg", "duration_s", "t0_s"):
             assert abs(mine[key] - theirs[key]) <= TOLERANCE, (mine["k"], key)
@@ -153,10 +153,16 @@ def test_a_log_cut_anywhere_resumes_to_the_uninterrupted_run(full, folder, where
     assert [p.name for p in folder.iterdir() if p.name.endswith(".resuming")] == []
 
 
-def test_a_run_killed_with_sigkill_resumes_on_the_command_line(full, folder):
+def test_a_run_killed_with_sigkill_resumes_on_the_command_line(folder):
+    # Long enough that the kill lands before the end: a period takes some 25 ms here, and
+    # looking into the log for its second one up to 15 ms (a 5-period run once ended first).
+    periods = 14
+    settings = [*SETTINGS, f"periods={periods}"]
+    full = folder / "full-14.mcap"
+    assert run_campaign(load_scenario(PAPER, settings), log_path=full).termination == "periods"
     path = folder / "killed.mcap"
     command = [sys.executable, "-c", "from orchestrator.cli.app import main; main()", "run",
-               str(PAPER), "-o", str(path), "-q", *(f"--set={item}" for item in SETTINGS)]
+               str(PAPER), "-o", str(path), "-q", *(f"--set={item}" for item in settings)]
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     child = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL,
                              stderr=subprocess.DEVNULL)
@@ -174,16 +180,16 @@ def test_a_run_killed_with_sigkill_resumes_on_the_command_line(full, folder):
         child.wait(timeout=60)
     assert child.returncode == -signal.SIGKILL
     killed = read_run(path)
-    assert not killed.finished and 2 <= len(killed.periods) < PERIODS
+    assert not killed.finished and 2 <= len(killed.periods) < periods
     done = CliRunner().invoke(app, ["run", "--resume", str(path)])
     assert done.exit_code == 0, done.output
-    assert f"resumed after period {len(killed.periods)}: dug all {PERIODS}" in done.stdout
-    assert_same_run(path, full)
+    assert f"resumed after period {len(killed.periods)}: dug all {periods}" in done.stdout
+    assert_same_run(path, full, periods=periods)
     review = CliRunner().invoke(app, ["review", str(path), "--json"])
     assert review.exit_code == 0, review.output
     summary = json.loads(review.stdout)
     assert summary["finished"] and summary["termination"] == "periods"
-    assert len(summary["periods"]) == PERIODS
+    assert len(summary["periods"]) == periods
     assert summary["resumed_after_period"] == len(killed.periods)
     text = CliRunner().invoke(app, ["review", str(path)])
     assert text.exit_code == 0 and f"(resumed after period {len(killed.periods)})" in text.stdout
