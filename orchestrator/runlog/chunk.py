@@ -3,6 +3,11 @@
 Message records (https://mcap.dev/spec#message-op0x05): opcode 0x05, record length (u64),
 channel id (u16), sequence (u32), log time and publish time (u64, ns), then the payload. The
 message index of a chunk maps each channel to (log time, offset in the chunk's records) pairs.
+
+Speed (a paper period: 11 channels x 1,400 samples, 1.3 MB of records): fields are written
+through numpy views with the rows' byte stride (`_strided`), one view per run of equally
+spaced fields rather than one per field, and rows are put in log-time order by a scatter of
+fixed-size byte rows (`_byte_rows`) rather than a join of hundreds of slices.
 """
 
 from __future__ import annotations
@@ -10,17 +15,17 @@ from __future__ import annotations
 import struct
 from collections import defaultdict
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from mcap.opcode import Opcode
-
-from orchestrator.runlog.wire import interleave
 
 MESSAGE_HEADER = struct.Struct("<BQHIQQ")
 MESSAGE_HEADER_FIELDS = (
     ("opcode", "u1"), ("length", "<u8"), ("channel", "<u2"), ("sequence", "<u4"),
     ("log_time", "<u8"), ("publish_time", "<u8"),
 )
+_SEQUENCE_AT, _LOG_TIME_AT = 11, 15  # byte offsets in MESSAGE_HEADER; publish time follows
 _RECORD_PREFIX = struct.Struct("<BQ")
 
 
@@ -33,6 +38,63 @@ class DoubleBatch:
     first_sequence: int
     prefixes: tuple[bytes, ...]
     values: np.ndarray  # (m, len(prefixes)) float64
+
+
+@dataclass(frozen=True)
+class _BatchLayout:
+    """Where things go in a row of `add_batches`: width (bytes), the row's constant bytes, and
+    per batch (header offset, [(first column, columns, byte offset, byte step)])."""
+
+    width: int
+    template: np.ndarray  # (width,) uint8
+    channels: tuple[tuple[int, tuple[tuple[int, int, int, int], ...]], ...]
+
+
+@lru_cache(maxsize=64)  # the same channels every period: laid out once per run
+def _batch_layout(batches: tuple[tuple[int, tuple[bytes, ...]], ...]) -> _BatchLayout:
+    """The row layout of (channel id, prefixes) batches: each message's header then for each
+    column its prefix and double."""
+    row = bytearray()
+    channels = []
+    for channel_id, prefixes in batches:
+        payload = sum(len(p) for p in prefixes) + 8 * len(prefixes)
+        header_at = len(row)
+        row += MESSAGE_HEADER.pack(Opcode.MESSAGE, MESSAGE_HEADER.size - 9 + payload,
+                                   channel_id, 0, 0, 0)
+        offsets = []
+        for prefix in prefixes:
+            row += prefix
+            offsets.append(len(row))
+            row += bytes(8)
+        channels.append((header_at, tuple(_runs(offsets))))
+    return _BatchLayout(len(row), np.frombuffer(bytes(row), dtype=np.uint8), tuple(channels))
+
+
+def _runs(offsets: list[int]):
+    """Runs of equally spaced offsets: (first index, count, first offset, step); a run of
+    doubles is one strided view (a tag before each double: step 9; packed: step 8)."""
+    start = 0
+    while start < len(offsets):
+        end = start + 1
+        step = offsets[end] - offsets[start] if end < len(offsets) else 8
+        while end < len(offsets) and offsets[end] - offsets[end - 1] == step:
+            end += 1
+        yield start, end - start, offsets[start], step
+        start = end
+
+
+def _strided(block: np.ndarray, offset: int, dtype: str, shape: tuple, strides: tuple
+             ) -> np.ndarray:
+    """A writable view of `block`'s bytes as `dtype` at `offset` with byte `strides` (unaligned
+    views are fine for numpy; they copy as fast as aligned ones here)."""
+    return np.ndarray(shape, dtype=dtype, buffer=block, offset=offset, strides=strides)
+
+
+def _byte_rows(buffer: np.ndarray, width: int) -> np.ndarray:
+    """`buffer` (flat uint8) as overlapping rows of `width` bytes, one starting at every byte:
+    indexing it with row start offsets copies whole rows in one numpy call."""
+    return np.ndarray((len(buffer) - width + 1,), dtype=f"V{width}", buffer=buffer,
+                      strides=(1,))
 
 
 class ChunkBuilder:
@@ -75,40 +137,27 @@ class ChunkBuilder:
         """Messages of several channels at the same sample times `log_time_ns` (m,) uint64,
         interleaved sample by sample (one row per sample)."""
         m = len(log_time_ns)
-        fields: list[tuple] = []
-        for c, batch in enumerate(batches):
+        for batch in batches:
             if batch.values.shape != (m, len(batch.prefixes)):
                 raise ValueError(f"batch for channel {batch.channel_id} has the wrong shape")
-            fields += [(f"c{c}_{name}", kind) for name, kind in MESSAGE_HEADER_FIELDS]
-            for j, prefix in enumerate(batch.prefixes):
-                if prefix:
-                    fields.append((f"c{c}_p{j}", "u1", (len(prefix),)))
-                fields.append((f"c{c}_v{j}", "<f8"))
-        dtype = np.dtype(fields)
-        # Constant bytes (record headers, protobuf tags) once in a template row, copied to all.
-        template = np.zeros(1, dtype=dtype)
-        for c, batch in enumerate(batches):
-            payload = sum(len(p) for p in batch.prefixes) + 8 * len(batch.prefixes)
-            template[f"c{c}_opcode"] = Opcode.MESSAGE
-            template[f"c{c}_length"] = MESSAGE_HEADER.size - 9 + payload
-            template[f"c{c}_channel"] = batch.channel_id
-            for j, prefix in enumerate(batch.prefixes):
-                if prefix:
-                    template[f"c{c}_p{j}"] = np.frombuffer(prefix, dtype=np.uint8)
-        block = np.empty(m, dtype=dtype)
-        block.view(np.uint8).reshape(m, -1)[:] = template.view(np.uint8)  # bytes: fast copy
+        layout = _batch_layout(tuple((b.channel_id, tuple(b.prefixes)) for b in batches))
+        width = layout.width
+        block = np.empty((m, width), dtype=np.uint8)
+        block[:] = layout.template  # constant bytes (record headers, protobuf tags)
+        times = np.asarray(log_time_ns, dtype=np.uint64)
+        counter = np.arange(m, dtype=np.uint32)
         entries = []
-        for c, batch in enumerate(batches):
-            block[f"c{c}_sequence"] = batch.first_sequence + np.arange(m, dtype=np.uint32)
-            block[f"c{c}_log_time"] = log_time_ns
-            block[f"c{c}_publish_time"] = log_time_ns
-            for j in range(len(batch.prefixes)):
-                block[f"c{c}_v{j}"] = batch.values[:, j]
-            within = np.full(m, dtype.fields[f"c{c}_opcode"][1], dtype=np.int64)
-            entries.append((batch.channel_id, within))
-        width = dtype.itemsize
-        self._add_group(log_time_ns, width * np.arange(m, dtype=np.int64),
-                        np.full(m, width, dtype=np.int64), block.view(np.uint8), entries)
+        for batch, (header_at, runs) in zip(batches, layout.channels, strict=True):
+            np.add(counter, np.uint32(batch.first_sequence),
+                   out=_strided(block, header_at + _SEQUENCE_AT, "<u4", (m,), (width,)))
+            _strided(block, header_at + _LOG_TIME_AT, "<u8", (m, 2), (width, 8))[:] = \
+                times[:, None]  # log time and publish time
+            for column, count, offset, step in runs:
+                _strided(block, offset, "<f8", (m, count), (width, step))[:] = \
+                    batch.values[:, column:column + count]
+            entries.append((batch.channel_id, np.full(m, header_at, dtype=np.int64)))
+        self._add_group(times, width * np.arange(m, dtype=np.int64),
+                        np.full(m, width, dtype=np.int64), block.reshape(-1), entries)
 
     def add_message(self, channel_id: int, sequence: int, log_time_ns: int, data: bytes) -> None:
         """One message of any size."""
@@ -127,64 +176,74 @@ class ChunkBuilder:
         [(sample indices (n_g,), payloads (n_g, w_g) uint8)], together covering 0..n-1."""
         times = np.asarray(log_time_ns, dtype=np.uint64)
         n = len(times)
-        head = np.empty(n, dtype=np.dtype(list(MESSAGE_HEADER_FIELDS)))
-        head["opcode"] = Opcode.MESSAGE
-        head["channel"] = channel_id
-        head["sequence"] = first_sequence + np.arange(n, dtype=np.uint32)
-        head["log_time"] = times
-        head["publish_time"] = times
+        sequences = first_sequence + np.arange(n, dtype=np.uint32)
+        # Each payload size is a group of rows of its own: equal times have equal timestamps,
+        # hence equal sizes, so the stable sort in _build keeps sample order within the channel.
         for index, payload in groups:
-            head["length"][index] = MESSAGE_HEADER.size - 9 + payload.shape[1]
-        head_bytes = head.view(np.uint8).reshape(n, -1)
-        data, starts = interleave(n, [(index, np.concatenate([head_bytes[index], payload], axis=1))
-                                      for index, payload in groups])
-        lengths = np.diff(np.append(starts, len(data)))
-        self._add_group(times, starts, lengths, data, [(channel_id, np.zeros(n, dtype=np.int64))])
+            head = np.empty(len(index), dtype=np.dtype(list(MESSAGE_HEADER_FIELDS)))
+            head["opcode"] = Opcode.MESSAGE
+            head["length"] = MESSAGE_HEADER.size - 9 + payload.shape[1]
+            head["channel"] = channel_id
+            head["sequence"] = sequences[index]
+            head["log_time"] = times[index]
+            head["publish_time"] = times[index]
+            rows = np.concatenate([head.view(np.uint8).reshape(len(index), -1), payload], axis=1)
+            width = rows.shape[1]
+            self._add_group(times[index], width * np.arange(len(index), dtype=np.int64),
+                            np.full(len(index), width, dtype=np.int64), rows.reshape(-1),
+                            [(channel_id, np.zeros(len(index), dtype=np.int64))])
 
-    def _build(self) -> tuple[bytes, dict[int, bytes]]:
+    def _build(self) -> tuple[memoryview, dict[int, bytes]]:
         if self._built is not None:
             return self._built
         groups = self._groups
         times = np.concatenate([g[0] for g in groups])
-        group = np.concatenate([np.full(len(g[0]), i) for i, g in enumerate(groups)])
-        row = np.concatenate([np.arange(len(g[0])) for g in groups])
-        starts = np.concatenate([g[1] for g in groups])
         lengths = np.concatenate([g[2] for g in groups])
         order = np.argsort(times, kind="stable")  # stable: ties keep the order of adding
-        group, row, starts, lengths = group[order], row[order], starts[order], lengths[order]
-        new_start = np.cumsum(lengths) - lengths  # of each sorted row, in the chunk
-        # Consecutive rows of one group are copied as one slice of its data.
-        first = np.flatnonzero(np.r_[True, (np.diff(group) != 0) | (np.diff(row) != 1)])
-        last = np.r_[first[1:], len(row)] - 1
-        views = [memoryview(g[3]) for g in groups]  # bytes or a flat uint8 array
-        records = b"".join([views[g][b:e] for g, b, e in zip(
-            group[first].tolist(), starts[first].tolist(),
-            (starts[last] + lengths[last]).tolist(), strict=True)])
-        # Where each group's rows went: sorted position -> chunk offset, back to (group, row).
-        placed = np.empty(len(times), dtype=np.int64)
-        placed[order] = new_start
+        placed = np.empty(len(times), dtype=np.int64)  # each row's offset in the chunk
+        placed[order] = np.cumsum(lengths[order]) - lengths[order]
+        records = np.empty(self.size, dtype=np.uint8)
         index: dict[int, list[tuple[np.ndarray, np.ndarray]]] = defaultdict(list)
         base = 0
-        for g_times, _, _, _, entries in self._groups:
-            rows_at = placed[base:base + len(g_times)]
-            for channel_id, within in entries:
-                index[channel_id].append((g_times, (rows_at + within).astype(np.uint64)))
+        for g_times, starts, g_lengths, data, entries in groups:
+            at = placed[base:base + len(g_times)]
             base += len(g_times)
+            _place(records, at, np.frombuffer(data, dtype=np.uint8), starts, g_lengths)
+            for channel_id, within in entries:
+                index[channel_id].append((g_times, at + within))
         indexes = {}
         for channel_id, parts in index.items():
             t = np.concatenate([p[0] for p in parts])
             offsets = np.concatenate([p[1] for p in parts])
-            o = np.lexsort((offsets, t))
-            entries = np.stack([t[o], offsets[o]], axis=1).astype("<u8").tobytes()
-            head = _RECORD_PREFIX.pack(Opcode.MESSAGE_INDEX, 6 + len(entries))
-            indexes[channel_id] = head + struct.pack("<HI", channel_id, len(entries)) + entries
-        self._built = (records, indexes)
+            if not np.all(offsets[1:] > offsets[:-1]):
+                # Records are in log-time order, so offset order is (log time, offset) order.
+                o = np.argsort(offsets)
+                t, offsets = t[o], offsets[o]
+            entries = np.empty((len(t), 2), dtype="<u8")
+            entries[:, 0], entries[:, 1] = t, offsets
+            head = _RECORD_PREFIX.pack(Opcode.MESSAGE_INDEX, 6 + entries.nbytes)
+            indexes[channel_id] = (head + struct.pack("<HI", channel_id, entries.nbytes)
+                                   + entries.tobytes())
+        self._built = (memoryview(records), indexes)
         return self._built
 
-    def records(self) -> bytes:
-        """The chunk's records, in log-time order."""
-        return self._build()[0] if self._groups else b""
+    def records(self) -> memoryview:
+        """The chunk's records, in log-time order (a bytes-like view)."""
+        return self._build()[0] if self._groups else memoryview(b"")
 
     def message_indexes(self) -> dict[int, bytes]:
         """Channel id -> its MessageIndex record (entries sorted by log time)."""
         return self._build()[1] if self._groups else {}
+
+
+def _place(records: np.ndarray, at: np.ndarray, source: np.ndarray, starts: np.ndarray,
+           lengths: np.ndarray) -> None:
+    """Copy the rows source[starts[i]:starts[i] + lengths[i]] to records[at[i]:...]: one
+    slice for a single row, one row scatter per distinct row length otherwise."""
+    if len(at) == 1:
+        start, length, to = int(starts[0]), int(lengths[0]), int(at[0])
+        records[to:to + length] = source[start:start + length]
+        return
+    for width in np.unique(lengths).tolist():
+        rows = lengths == width
+        _byte_rows(records, width)[at[rows]] = _byte_rows(source, width)[starts[rows]]

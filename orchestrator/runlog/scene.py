@@ -101,8 +101,8 @@ def encode_frame_transforms(transforms, log_time_ns: np.ndarray):
     `link_transforms` output and the samples' times (n,) ns (the transforms' timestamps).
 
     Returns groups [(sample indices, payloads (n_g, w_g) uint8)] of equal-size messages (sizes
-    differ only through the timestamp varints); `orchestrator.runlog.wire.interleave` joins
-    them. Explicit zeros are written (valid protobuf) so every other part has a fixed size.
+    differ only through the timestamp varints); `ChunkBuilder.add_grouped` puts them in
+    order. Explicit zeros are written (valid protobuf) so every other part has a fixed size.
     """
     ns = np.asarray(log_time_ns, dtype=np.uint64)
     billion = np.uint64(1_000_000_000)

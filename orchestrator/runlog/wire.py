@@ -1,8 +1,8 @@
 """Byte-level functions for encoding many protobuf messages or MCAP records at once with numpy.
 
 Rows of bytes are (n, w) uint8 arrays: row i is message i. Messages whose sizes differ (only
-through varints, e.g. timestamps) are encoded in groups of equal size and put back in order
-by `interleave`. Protobuf wire format: https://protobuf.dev/programming-guides/encoding/
+through varints, e.g. timestamps) are encoded in groups of equal size (ChunkBuilder.add_grouped
+puts them in order). Protobuf wire format: https://protobuf.dev/programming-guides/encoding/
 """
 
 from __future__ import annotations
@@ -57,16 +57,3 @@ def doubles(numbers, values: np.ndarray) -> np.ndarray:
 def field(number: int, payload: bytes) -> bytes:
     """A protobuf length-delimited field (message, string, bytes or packed values)."""
     return bytes([number << 3 | 2]) + varint(len(payload)) + payload
-
-
-def interleave(n: int, groups) -> tuple[bytes, np.ndarray]:
-    """Rows of several equal-size groups [(row indices (n_g,), bytes (n_g, w_g)), ...] covering
-    0..n-1, joined in row order. Returns (bytes, start offset of each row (n,))."""
-    pieces: list[bytes] = [b""] * n
-    lengths = np.zeros(n, dtype=np.int64)
-    for index, data in groups:
-        lengths[index] = data.shape[1]
-        raw, width = data.tobytes(), data.shape[1]
-        for k, i in enumerate(index.tolist()):
-            pieces[i] = raw[k * width:(k + 1) * width]
-    return b"".join(pieces), np.cumsum(lengths) - lengths

@@ -1,0 +1,70 @@
+"""orchestrator.runlog.chunk against the straightforward builder it replaced
+(tests/chunk_reference.py): the same records and message indexes, byte for byte, for batches
+of any field layout, single messages and grouped payloads added in any time order."""
+
+import numpy as np
+from chunk_reference import ChunkBuilder as ReferenceBuilder
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from orchestrator.runlog.chunk import ChunkBuilder, DoubleBatch
+from orchestrator.runlog.samples import double_tag
+
+PREFIXES = st.sampled_from([double_tag(1), double_tag(7), double_tag(16), double_tag(33),
+                            b"\x12\x18", b""])
+
+
+@st.composite
+def chunk_content(draw):
+    """A list of additions: ("batches", [(prefixes, seed)], times), ("message", time, size),
+    ("grouped", times, widths)."""
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    additions = []
+    for _ in range(draw(st.integers(1, 5))):
+        kind = draw(st.sampled_from(["batches", "message", "grouped"]))
+        n = draw(st.integers(1, 30))
+        times = np.sort(rng.integers(0, 20, n)).astype(np.uint64) if draw(st.booleans()) \
+            else rng.integers(0, 20, n).astype(np.uint64)
+        if kind == "batches":
+            channels = [tuple(draw(st.lists(PREFIXES, min_size=1, max_size=6)))
+                        for _ in range(draw(st.integers(1, 4)))]
+            additions.append((kind, [(p, rng.normal(size=(n, len(p)))) for p in channels],
+                              times))
+        elif kind == "message":
+            additions.append((kind, int(times[0]), rng.bytes(int(rng.integers(0, 50)))))
+        else:
+            # equal times get equal sizes, as timestamps' varints do
+            widths = (times % 3 + 1).astype(int)
+            additions.append((kind, times, widths))
+    return additions
+
+
+def build(builder, additions):
+    channel = 0
+    for kind, content, extra in additions:
+        channel += 1
+        if kind == "batches":
+            batches = []
+            for prefixes, values in content:
+                batches.append(DoubleBatch(channel, 3 * channel, prefixes, values))
+                channel += 1
+            builder.add_batches(batches, extra)
+        elif kind == "message":
+            builder.add_message(channel, channel, content, extra)
+        else:
+            times, widths = content, extra
+            groups = [(np.flatnonzero(widths == w),
+                       np.full((int(np.sum(widths == w)), w), w, dtype=np.uint8))
+                      for w in np.unique(widths)]
+            builder.add_grouped(channel, 5, times, groups)
+    return builder
+
+
+@settings(max_examples=200, deadline=None)
+@given(chunk_content())
+def test_records_and_indexes_equal_the_reference_builder(additions):
+    fast, reference = build(ChunkBuilder(), additions), build(ReferenceBuilder(), additions)
+    assert bytes(fast.records()) == reference.records()
+    assert fast.message_indexes() == reference.message_indexes()
+    assert (fast.start_time, fast.end_time, fast.size, dict(fast.counts)) == (
+        reference.start_time, reference.end_time, reference.size, dict(reference.counts))
