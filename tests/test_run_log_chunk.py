@@ -1,14 +1,18 @@
-"""orchestrator.runlog.chunk against the straightforward builder it replaced
-(tests/chunk_reference.py): the same records and message indexes, byte for byte, for batches
-of any field layout, single messages and grouped payloads added in any time order."""
+"""orchestrator.runlog's fast encoders against the straightforward ones they replaced
+(tests/run_log_reference.py), byte for byte: chunk records and message indexes for batches of
+any field layout, single messages and grouped payloads added in any time order; /tf messages
+for any joints and times."""
 
 import numpy as np
-from chunk_reference import ChunkBuilder as ReferenceBuilder
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from run_log_reference import ChunkBuilder as ReferenceBuilder
+from run_log_reference import encode_frame_transforms as reference_transforms
 
 from orchestrator.runlog.chunk import ChunkBuilder, DoubleBatch
 from orchestrator.runlog.samples import double_tag
+from orchestrator.runlog.scene import encode_frame_transforms, link_transforms
+from plant_models import presets
 
 PREFIXES = st.sampled_from([double_tag(1), double_tag(7), double_tag(16), double_tag(33),
                             b"\x12\x18", b""])
@@ -68,3 +72,19 @@ def test_records_and_indexes_equal_the_reference_builder(additions):
     assert fast.message_indexes() == reference.message_indexes()
     assert (fast.start_time, fast.end_time, fast.size, dict(fast.counts)) == (
         reference.start_time, reference.end_time, reference.size, dict(reference.counts))
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 60),
+       st.sampled_from([0, 10**9 - 5 * 10**6, 127 * 10**9, 10**13]))
+def test_frame_transforms_equal_the_reference_encoding(seed, n, start_ns):
+    rng = np.random.default_rng(seed)
+    # times across varint sizes: nanoseconds of 1 to 5 bytes, seconds of 1 or more
+    times = (start_ns + np.sort(rng.integers(0, 3 * 10**9, n))).astype(np.uint64)
+    transforms = link_transforms(presets.get("paper"), rng.uniform(-3, 3, (n, 3)))
+    fast = encode_frame_transforms(transforms, times)
+    reference = reference_transforms(transforms, times)
+    assert len(fast) == len(reference)
+    for (index, payload), (ref_index, ref_payload) in zip(fast, reference, strict=True):
+        assert np.array_equal(index, ref_index)
+        assert payload.tobytes() == ref_payload.tobytes()

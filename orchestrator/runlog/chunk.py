@@ -5,7 +5,7 @@ channel id (u16), sequence (u32), log time and publish time (u64, ns), then the 
 message index of a chunk maps each channel to (log time, offset in the chunk's records) pairs.
 
 Speed (a paper period: 11 channels x 1,400 samples, 1.3 MB of records): fields are written
-through numpy views with the rows' byte stride (`_strided`), one view per run of equally
+through numpy views with the rows' byte stride (`wire.strided`), one view per run of equally
 spaced fields rather than one per field, and rows are put in log-time order by a scatter of
 fixed-size byte rows (`_byte_rows`) rather than a join of hundreds of slices.
 """
@@ -19,6 +19,8 @@ from functools import lru_cache
 
 import numpy as np
 from mcap.opcode import Opcode
+
+from orchestrator.runlog.wire import strided
 
 MESSAGE_HEADER = struct.Struct("<BQHIQQ")
 MESSAGE_HEADER_FIELDS = (
@@ -83,13 +85,6 @@ def _runs(offsets: list[int]):
         start = end
 
 
-def _strided(block: np.ndarray, offset: int, dtype: str, shape: tuple, strides: tuple
-             ) -> np.ndarray:
-    """A writable view of `block`'s bytes as `dtype` at `offset` with byte `strides` (unaligned
-    views are fine for numpy; they copy as fast as aligned ones here)."""
-    return np.ndarray(shape, dtype=dtype, buffer=block, offset=offset, strides=strides)
-
-
 def _byte_rows(buffer: np.ndarray, width: int) -> np.ndarray:
     """`buffer` (flat uint8) as overlapping rows of `width` bytes, one starting at every byte:
     indexing it with row start offsets copies whole rows in one numpy call."""
@@ -149,11 +144,11 @@ class ChunkBuilder:
         entries = []
         for batch, (header_at, runs) in zip(batches, layout.channels, strict=True):
             np.add(counter, np.uint32(batch.first_sequence),
-                   out=_strided(block, header_at + _SEQUENCE_AT, "<u4", (m,), (width,)))
-            _strided(block, header_at + _LOG_TIME_AT, "<u8", (m, 2), (width, 8))[:] = \
+                   out=strided(block, header_at + _SEQUENCE_AT, "<u4", (m,), (width,)))
+            strided(block, header_at + _LOG_TIME_AT, "<u8", (m, 2), (width, 8))[:] = \
                 times[:, None]  # log time and publish time
             for column, count, offset, step in runs:
-                _strided(block, offset, "<f8", (m, count), (width, step))[:] = \
+                strided(block, offset, "<f8", (m, count), (width, step))[:] = \
                     batch.values[:, column:column + count]
             entries.append((batch.channel_id, np.full(m, header_at, dtype=np.int64)))
         self._add_group(times, width * np.arange(m, dtype=np.int64),

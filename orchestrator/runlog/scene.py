@@ -19,6 +19,7 @@ frame is the point (u, v) of `plant_models.geometry`'s link frames.
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 from foxglove.messages import (
@@ -33,7 +34,7 @@ from foxglove.messages import (
     Vector3,
 )
 
-from orchestrator.runlog.wire import doubles, field, rows, varint, varint_digits
+from orchestrator.runlog.wire import doubles, field, rows, strided, varint, varint_digits
 from plant_models.geometry import ExcavatorGeometry
 
 WORLD = "world"
@@ -109,25 +110,47 @@ def encode_frame_transforms(transforms, log_time_ns: np.ndarray):
     second_digits, second_lengths = varint_digits(ns // billion)
     nano_digits, nano_lengths = varint_digits(ns % billion)
     kinds = second_lengths * _MAX_VARINT + nano_lengths
-    fixed = [  # parent, child, translation and rotation of each transform, all samples
-        rows(len(ns), [_string_field(2, parent) + _string_field(3, child),
-                       b"\x22\x1b", doubles((1, 2, 3), translation),  # Vector3: 27 bytes
-                       b"\x2a\x24", doubles((1, 2, 3, 4), rotation)])  # Quaternion: 36 bytes
-        for parent, child, translation, rotation in transforms
-    ]
+    names = tuple((parent, child) for parent, child, _, _ in transforms)
     groups = []
-    for kind in np.unique(kinds):
+    for kind in np.unique(kinds).tolist():
         index = np.flatnonzero(kinds == kind)
         n = len(index)
-        stamp = rows(n, [b"\x08", second_digits[index, :kind // _MAX_VARINT],
-                         b"\x10", nano_digits[index, :kind % _MAX_VARINT]])
-        stamp = rows(n, [b"\x0a" + varint(stamp.shape[1]), stamp])  # FrameTransform.timestamp
-        parts = []
-        for transform in fixed:
-            size = stamp.shape[1] + transform.shape[1]
-            parts += [b"\x0a" + varint(size), stamp, transform[index]]  # .transforms
-        groups.append((index, rows(n, parts)))
+        seconds, nanos = divmod(kind, _MAX_VARINT)
+        stamp = np.empty((n, 2 + seconds + nanos), dtype=np.uint8)  # Timestamp sec, nsec
+        stamp[:, 0], stamp[:, 1 + seconds] = 0x08, 0x10
+        stamp[:, 1:1 + seconds] = second_digits[index, :seconds]
+        stamp[:, 2 + seconds:] = nano_digits[index, :nanos]
+        template, places = _transforms_layout(names, stamp.shape[1])
+        width = len(template)
+        block = np.empty((n, width), dtype=np.uint8)
+        block[:] = template
+        for (_, _, translation, rotation), (stamp_at, doubles_at) in zip(
+                transforms, places, strict=True):
+            block[:, stamp_at:stamp_at + stamp.shape[1]] = stamp
+            # translation x, y, z then rotation x, y, z, w: tag + double each, 2 bytes between
+            strided(block, doubles_at, "<f8", (n, 3), (width, 9))[:] = translation[index]
+            strided(block, doubles_at + 29, "<f8", (n, 4), (width, 9))[:] = rotation[index]
+        groups.append((index, block))
     return groups
+
+
+@lru_cache(maxsize=32)  # the same frames every period and a few timestamp sizes
+def _transforms_layout(names: tuple[tuple[str, str], ...], stamp_size: int
+                       ) -> tuple[np.ndarray, tuple[tuple[int, int], ...]]:
+    """A FrameTransforms row with zeros for the timestamps and doubles: (its bytes, per
+    transform (offset of its Timestamp's content, offset of its translation's first double))."""
+    doubles_tags = (b"\x22\x1b" + b"".join(bytes([n << 3 | 1]) + bytes(8) for n in (1, 2, 3))
+                    + b"\x2a\x24" + b"".join(bytes([n << 3 | 1]) + bytes(8) for n in (1, 2, 3, 4)))
+    row, places = b"", []
+    for parent, child in names:
+        stamp = b"\x0a" + varint(stamp_size)  # FrameTransform.timestamp
+        strings = _string_field(2, parent) + _string_field(3, child)
+        transform = stamp + bytes(stamp_size) + strings + doubles_tags
+        head = b"\x0a" + varint(len(transform))  # FrameTransforms.transforms
+        at = len(row) + len(head)
+        places.append((at + len(stamp), at + len(stamp) + stamp_size + len(strings) + 3))
+        row += head + transform
+    return np.frombuffer(row, dtype=np.uint8), tuple(places)
 
 
 _MAX_VARINT = 16  # > the longest varint, to pack two varint lengths into one number

@@ -57,3 +57,11 @@ def doubles(numbers, values: np.ndarray) -> np.ndarray:
 def field(number: int, payload: bytes) -> bytes:
     """A protobuf length-delimited field (message, string, bytes or packed values)."""
     return bytes([number << 3 | 2]) + varint(len(payload)) + payload
+
+
+def strided(block: np.ndarray, offset: int, dtype: str, shape: tuple, strides: tuple
+            ) -> np.ndarray:
+    """A writable view of the bytes of `block` (a uint8 array) as `dtype` at byte `offset` with
+    byte `strides`: one numpy call writes a field of every row (or several equally spaced
+    fields). Such views are unaligned; numpy copies into them about as fast as aligned ones."""
+    return np.ndarray(shape, dtype=dtype, buffer=block, offset=offset, strides=strides)

@@ -1,6 +1,7 @@
-"""The straightforward ChunkBuilder that orchestrator.runlog.chunk replaced (one structured
-field write per double, a join of slices in log-time order), kept as the reference its faster
-code must match byte for byte (tests/test_run_log_chunk.py).
+"""The straightforward encoders that orchestrator.runlog replaced with faster ones, kept as the
+references those must match byte for byte (tests/test_run_log_chunk.py): ChunkBuilder (one
+structured field write per double, a join of slices in log-time order) and
+encode_frame_transforms (/tf rows concatenated part by part).
 
 The records of one MCAP chunk, built with numpy a whole batch of messages at a time.
 
@@ -18,6 +19,7 @@ import numpy as np
 from mcap.opcode import Opcode
 
 from orchestrator.runlog.chunk import MESSAGE_HEADER, MESSAGE_HEADER_FIELDS, DoubleBatch
+from orchestrator.runlog.wire import doubles, field, rows, varint, varint_digits
 
 _RECORD_PREFIX = struct.Struct("<BQ")
 
@@ -188,3 +190,44 @@ def interleave(n: int, groups) -> tuple[bytes, np.ndarray]:
         for k, i in enumerate(index.tolist()):
             pieces[i] = raw[k * width:(k + 1) * width]
     return b"".join(pieces), np.cumsum(lengths) - lengths
+
+
+def encode_frame_transforms(transforms, log_time_ns: np.ndarray):
+    """foxglove.FrameTransforms messages (serialized protobuf), one per sample, from
+    `link_transforms` output and the samples' times (n,) ns (the transforms' timestamps).
+
+    Returns groups [(sample indices, payloads (n_g, w_g) uint8)] of equal-size messages (sizes
+    differ only through the timestamp varints); `interleave` joins them. Explicit zeros are
+    written (valid protobuf) so every other part has a fixed size.
+    """
+    ns = np.asarray(log_time_ns, dtype=np.uint64)
+    billion = np.uint64(1_000_000_000)
+    second_digits, second_lengths = varint_digits(ns // billion)
+    nano_digits, nano_lengths = varint_digits(ns % billion)
+    kinds = second_lengths * _MAX_VARINT + nano_lengths
+    fixed = [  # parent, child, translation and rotation of each transform, all samples
+        rows(len(ns), [_string_field(2, parent) + _string_field(3, child),
+                       b"\x22\x1b", doubles((1, 2, 3), translation),  # Vector3: 27 bytes
+                       b"\x2a\x24", doubles((1, 2, 3, 4), rotation)])  # Quaternion: 36 bytes
+        for parent, child, translation, rotation in transforms
+    ]
+    groups = []
+    for kind in np.unique(kinds):
+        index = np.flatnonzero(kinds == kind)
+        n = len(index)
+        stamp = rows(n, [b"\x08", second_digits[index, :kind // _MAX_VARINT],
+                         b"\x10", nano_digits[index, :kind % _MAX_VARINT]])
+        stamp = rows(n, [b"\x0a" + varint(stamp.shape[1]), stamp])  # FrameTransform.timestamp
+        parts = []
+        for transform in fixed:
+            size = stamp.shape[1] + transform.shape[1]
+            parts += [b"\x0a" + varint(size), stamp, transform[index]]  # .transforms
+        groups.append((index, rows(n, parts)))
+    return groups
+
+
+_MAX_VARINT = 16
+
+
+def _string_field(number: int, text: str) -> bytes:
+    return field(number, text.encode())
