@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from run_log_reference import ChunkBuilder as ReferenceBuilder
 from run_log_reference import encode_frame_transforms as reference_transforms
 
-from orchestrator.runlog.chunk import ChunkBuilder, DoubleBatch
+from orchestrator.runlog.chunk import BufferPool, ChunkBuilder, DoubleBatch
 from orchestrator.runlog.samples import double_tag
 from orchestrator.runlog.scene import encode_frame_transforms, link_transforms
 from plant_models import presets
@@ -67,11 +67,16 @@ def build(builder, additions):
 @settings(max_examples=200, deadline=None)
 @given(chunk_content())
 def test_records_and_indexes_equal_the_reference_builder(additions):
-    fast, reference = build(ChunkBuilder(), additions), build(ReferenceBuilder(), additions)
-    assert bytes(fast.records()) == reference.records()
-    assert fast.message_indexes() == reference.message_indexes()
-    assert (fast.start_time, fast.end_time, fast.size, dict(fast.counts)) == (
-        reference.start_time, reference.end_time, reference.size, dict(reference.counts))
+    reference = build(ReferenceBuilder(), additions)
+    pool = BufferPool()
+    # without a pool, then twice from one pool: the second chunk reuses the first's buffers
+    for chunk_pool in (None, pool, pool):
+        fast = build(ChunkBuilder(chunk_pool), additions)
+        assert bytes(fast.records()) == reference.records()
+        assert fast.message_indexes() == reference.message_indexes()
+        assert (fast.start_time, fast.end_time, fast.size, dict(fast.counts)) == (
+            reference.start_time, reference.end_time, reference.size, dict(reference.counts))
+        fast.release()
 
 
 @settings(max_examples=100, deadline=None)

@@ -42,7 +42,7 @@ from mcap.records import (
     SummaryOffset,
 )
 
-from orchestrator.runlog.chunk import ChunkBuilder
+from orchestrator.runlog.chunk import BufferPool, ChunkBuilder
 
 MAGIC = b"\x89MCAP0\r\n"
 _RECORD_PREFIX = struct.Struct("<BQ")
@@ -79,6 +79,7 @@ class McapChunkWriter:
         self._offset = 0
         self._data_crc = 0  # CRC-32 of every byte from the magic up to DataEnd (the spec's)
         self._compressor = zstandard.ZstdCompressor(level=compression_level)
+        self.pool = BufferPool()  # for this writer's chunks (ChunkBuilder(writer.pool))
         self._schemas: list[Schema] = []
         self._channels: list[Channel] = []
         self._sequences: dict[int, int] = defaultdict(int)
@@ -204,8 +205,10 @@ class McapChunkWriter:
         ))
 
     def write_chunk(self, chunk: ChunkBuilder) -> None:
-        """Compress `chunk` and write it with its message indexes; nothing if it is empty."""
+        """Compress `chunk` and write it with its message indexes (nothing if it is empty),
+        then release its buffers."""
         if chunk.start_time is None:
+            chunk.release()
             return
         records = chunk.records()
         compressed = self._compressor.compress(records)
@@ -238,6 +241,7 @@ class McapChunkWriter:
             self._start_time = chunk.start_time
         self._start_time = min(self._start_time, chunk.start_time)
         self._end_time = max(self._end_time, chunk.end_time)
+        chunk.release()
 
     def flush(self, fsync: bool = False) -> None:
         """Hand everything written so far to the operating system; with `fsync`, to the disk."""

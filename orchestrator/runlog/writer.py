@@ -221,7 +221,7 @@ class RunLog:
         resume_json = None if resume_state is None else \
             to_json(dict(resume_state), f"period {period} resume state").encode()
         period_data = decimated(checked(measurement), self._sample_rate_hz)
-        chunk = ChunkBuilder()
+        chunk = ChunkBuilder(self._writer.pool)
         times, tip_path = self._add_samples(chunk, period_data, t0_s)
         end_ns = int(np.rint(times[-1] * 1e9))
         grid, profile = period_data.pile_grid_m, period_data.pile_profile_m
@@ -250,7 +250,7 @@ class RunLog:
         measured is lost, and readers count only complete periods."""
         if self._closed:
             raise ValueError(f"run log {self.path} is closed")
-        chunk = ChunkBuilder()
+        chunk = ChunkBuilder(self._writer.pool)
         self._add_samples(chunk, decimated(checked(measurement), self._sample_rate_hz), t0_s)
         self._writer.write_chunk(chunk)
         self._writer.flush(self._fsync)
@@ -295,7 +295,7 @@ class RunLog:
         if not (math.isfinite(t_s) and t_s >= 0.0):
             raise ValueError(f"t_s must be finite and >= 0, got {t_s!r}")
         time_ns = int(round(t_s * 1e9))
-        chunk = ChunkBuilder()
+        chunk = ChunkBuilder(self._writer.pool)
         channel = self._proto_channel("/pile/profile", PILE_PROFILE, {})
         chunk.add_message(channel, self._writer.reserve_sequence(channel, 1), time_ns,
                           profile_message(t_s, grid, profile))
