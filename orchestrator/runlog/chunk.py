@@ -124,10 +124,11 @@ class ChunkBuilder:
 
     def __init__(self, pool: BufferPool | None = None) -> None:
         # Each group: (rows' log times (n,), row width w (bytes), data (n * w bytes: the rows),
-        # [(channel id, message offsets inside a row (n,))]). A row holds one message, or one
-        # message per channel of a batch of samples taken at the same time.
+        # [(channel id, message offsets inside a row (n,))], whether the times never go back).
+        # A row holds one message, or one message per channel of a batch of samples taken at
+        # the same time.
         self._groups: list[tuple[np.ndarray, int, bytes | np.ndarray,
-                                 list[tuple[int, np.ndarray]]]] = []
+                                 list[tuple[int, np.ndarray]], bool]] = []
         self.size = 0
         self.start_time: int | None = None
         self.end_time = 0
@@ -154,7 +155,8 @@ class ChunkBuilder:
         times = np.asarray(times, dtype=np.uint64)
         if len(times) == 0:
             return
-        self._groups.append((times, width, data, entries))
+        in_order = len(times) == 1 or bool(np.all(times[1:] >= times[:-1]))
+        self._groups.append((times, width, data, entries, in_order))
         for channel_id, _ in entries:
             self.counts[channel_id] += len(times)
         low, high = int(times.min()), int(times.max())
@@ -229,9 +231,9 @@ class ChunkBuilder:
         placed = np.empty(len(times), dtype=np.int64)  # each row's offset in the chunk
         placed[order] = np.cumsum(lengths[order]) - lengths[order]
         records = self._buffer(self.size)
-        index: dict[int, list[tuple[np.ndarray, np.ndarray]]] = defaultdict(list)
+        index: dict[int, list[tuple[np.ndarray, np.ndarray, bool]]] = defaultdict(list)
         base = 0
-        for g_times, width, data, entries in groups:
+        for g_times, width, data, entries, in_order in groups:
             at = placed[base:base + len(g_times)]
             base += len(g_times)
             if len(at) == 1:
@@ -239,14 +241,16 @@ class ChunkBuilder:
             else:
                 _byte_rows(records, width)[at] = np.frombuffer(data, dtype=f"V{width}")
             for channel_id, within in entries:
-                index[channel_id].append((g_times, at + within))
+                index[channel_id].append((g_times, at + within, in_order))
         indexes = {}
         for channel_id, parts in index.items():
-            t = np.concatenate([p[0] for p in parts])
-            offsets = np.concatenate([p[1] for p in parts])
-            if not np.all(offsets[1:] > offsets[:-1]):
+            if len(parts) == 1 and parts[0][2]:
+                t, offsets, _ = parts[0]  # a group in time order keeps its order in the chunk
+            else:
+                t = np.concatenate([p[0] for p in parts])
+                offsets = np.concatenate([p[1] for p in parts])
                 # Records are in log-time order, so offset order is (log time, offset) order.
-                o = np.argsort(offsets)
+                o = np.argsort(offsets, kind="stable")
                 t, offsets = t[o], offsets[o]
             entries = np.empty((len(t), 2), dtype="<u8")
             entries[:, 0], entries[:, 1] = t, offsets

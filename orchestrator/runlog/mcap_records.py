@@ -224,10 +224,12 @@ class McapChunkWriter:
         self._write(compressed)
         chunk_length = self._offset - chunk_offset
         index_offsets = {}
-        index_start = self._offset
-        for channel_id, index in chunk.message_indexes().items():
-            index_offsets[channel_id] = self._offset
-            self._write(index)
+        index_start = offset = self._offset
+        indexes = chunk.message_indexes()
+        for channel_id, index in indexes.items():
+            index_offsets[channel_id] = offset
+            offset += len(index)
+        self._write(b"".join(indexes.values()))  # one write (and CRC update) for all
         self._chunk_indexes.append(ChunkIndex(
             message_start_time=chunk.start_time, message_end_time=chunk.end_time,
             chunk_start_offset=chunk_offset, chunk_length=chunk_length,

@@ -3,6 +3,7 @@ protobuf field layout, and the pile profile message (`orchestrator.runlog.schema
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from dataclasses import dataclass, replace
@@ -59,6 +60,9 @@ def _packed_tag(number: int, count: int) -> bytes:
     return varint(number << 3 | 2) + varint(8 * count)
 
 
+_JOINT_PREFIXES = tuple(double_tag(n + 1) for n in range(len(JOINT_STATE.fields)))
+
+
 def checked(measurement: PeriodMeasurement) -> CheckedPeriod:
     """The measurement as float64 arrays; ValueError naming what is malformed."""
     t = np.asarray(measurement.t_s, dtype=float)
@@ -112,37 +116,42 @@ def sample_channels(period: CheckedPeriod, times_s: np.ndarray) -> list[SampleCh
     """The high-rate channels of a period with campaign times times_s (m,) s: /joints always;
     /cylinder/<joint> and /pile/bucket with the fields whose signals were measured; every other
     signal on /signals/<component> (the part of its name before the first dot)."""
-    out = [SampleChannel("/joints", JOINT_STATE, {},
-                         tuple(double_tag(n + 1) for n in range(len(JOINT_STATE.fields))),
+    out = [SampleChannel("/joints", JOINT_STATE, {}, _JOINT_PREFIXES,
                          np.column_stack([times_s, period.reference_rad, period.joints_rad]))]
+    signals = period.signals
+    for topic, message, metadata, prefixes, names in _signal_layout(tuple(signals)):
+        out.append(SampleChannel(topic, message, dict(metadata), prefixes,
+                                 np.column_stack([times_s] + [signals[n] for n in names])))
+    return out
+
+
+@functools.lru_cache(maxsize=16)  # a run measures the same signals every period
+def _signal_layout(signal_names: tuple[str, ...]) -> tuple[tuple, ...]:
+    """(topic, message, metadata, prefixes, signal names of the columns after t_s) of each
+    channel of `sample_channels` after /joints, for the measured signals `signal_names`."""
     groups = [(f"/cylinder/{joint}", CYLINDER_STATE, cylinder_signals(joint))
               for joint in JOINTS]
     groups.append(("/pile/bucket", PILE_BUCKET_STATE, PILE_BUCKET_STATE.signals))
-    signals, used = period.signals, set()
+    measured, used, out = set(signal_names), set(), []
     for topic, message, sources in groups:
         mapping = {f: s for f, s in zip(message.fields, sources, strict=True) if s}
-        fields = [f for f, s in mapping.items() if s in signals]
+        fields = [f for f, s in mapping.items() if s in measured]
         if not fields:
             continue
         used.update(mapping[f] for f in fields)
-        out.append(SampleChannel(
-            topic, message, {"signals": json.dumps(mapping)},
-            tuple(double_tag(message.number(f)) for f in ("t_s", *fields)),
-            np.column_stack([times_s] + [signals[mapping[f]] for f in fields]),
-        ))
+        out.append((topic, message, {"signals": json.dumps(mapping)},
+                    tuple(double_tag(message.number(f)) for f in ("t_s", *fields)),
+                    tuple(mapping[f] for f in fields)))
     components: dict[str, list[str]] = {}
-    for name in signals:
+    for name in signal_names:
         if name not in used:
             components.setdefault(name.split(".", 1)[0] if "." in name else "plant",
                                   []).append(name)
     for component, names in components.items():
         packed = _packed_tag(SIGNAL_SAMPLE.number("values"), len(names))
-        out.append(SampleChannel(
-            f"/signals/{component}", SIGNAL_SAMPLE, {"names": json.dumps(names)},
-            (double_tag(1), packed) + (b"",) * (len(names) - 1),
-            np.column_stack([times_s] + [signals[n] for n in names]),
-        ))
-    return out
+        out.append((f"/signals/{component}", SIGNAL_SAMPLE, {"names": json.dumps(names)},
+                    (double_tag(1), packed) + (b"",) * (len(names) - 1), tuple(names)))
+    return tuple(out)
 
 
 def profile_message(time_s: float, grid_m: np.ndarray | None, profile_m: np.ndarray) -> bytes:
