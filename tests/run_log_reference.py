@@ -18,9 +18,13 @@ from collections import defaultdict
 import numpy as np
 from mcap.opcode import Opcode
 
-from orchestrator.runlog.chunk import MESSAGE_HEADER, MESSAGE_HEADER_FIELDS, DoubleBatch
+from orchestrator.runlog.chunk import MESSAGE_HEADER, DoubleBatch
 from orchestrator.runlog.wire import doubles, field, rows, varint, varint_digits
 
+MESSAGE_HEADER_FIELDS = (
+    ("opcode", "u1"), ("length", "<u8"), ("channel", "<u2"), ("sequence", "<u4"),
+    ("log_time", "<u8"), ("publish_time", "<u8"),
+)
 _RECORD_PREFIX = struct.Struct("<BQ")
 
 

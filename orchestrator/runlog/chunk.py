@@ -23,10 +23,6 @@ from mcap.opcode import Opcode
 from orchestrator.runlog.wire import strided
 
 MESSAGE_HEADER = struct.Struct("<BQHIQQ")
-MESSAGE_HEADER_FIELDS = (
-    ("opcode", "u1"), ("length", "<u8"), ("channel", "<u2"), ("sequence", "<u4"),
-    ("log_time", "<u8"), ("publish_time", "<u8"),
-)
 _SEQUENCE_AT, _LOG_TIME_AT = 11, 15  # byte offsets in MESSAGE_HEADER; publish time follows
 _RECORD_PREFIX = struct.Struct("<BQ")
 
@@ -210,16 +206,17 @@ class ChunkBuilder:
         # Each payload size is a group of rows of its own: equal times have equal timestamps,
         # hence equal sizes, so the stable sort in _build keeps sample order within the channel.
         for index, payload in groups:
-            head = np.empty(len(index), dtype=np.dtype(list(MESSAGE_HEADER_FIELDS)))
-            head["opcode"] = Opcode.MESSAGE
-            head["length"] = MESSAGE_HEADER.size - 9 + payload.shape[1]
-            head["channel"] = channel_id
-            head["sequence"] = sequences[index]
-            head["log_time"] = times[index]
-            head["publish_time"] = times[index]
-            rows = np.concatenate([head.view(np.uint8).reshape(len(index), -1), payload], axis=1)
-            self._add_group(times[index], rows.shape[1], rows.reshape(-1),
-                            [(channel_id, np.zeros(len(index), dtype=np.int64))])
+            count, size = payload.shape
+            width = MESSAGE_HEADER.size + size
+            rows = np.empty((count, width), dtype=np.uint8)
+            rows[:, :MESSAGE_HEADER.size] = np.frombuffer(MESSAGE_HEADER.pack(
+                Opcode.MESSAGE, width - 9, channel_id, 0, 0, 0), dtype=np.uint8)
+            rows[:, MESSAGE_HEADER.size:] = payload
+            strided(rows, _SEQUENCE_AT, "<u4", (count,), (width,))[:] = sequences[index]
+            strided(rows, _LOG_TIME_AT, "<u8", (count, 2), (width, 8))[:] = \
+                times[index][:, None]  # log time and publish time
+            self._add_group(times[index], width, rows.reshape(-1),
+                            [(channel_id, np.zeros(count, dtype=np.int64))])
 
     def _build(self) -> tuple[memoryview, dict[int, bytes]]:
         if self._built is not None:

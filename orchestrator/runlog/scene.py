@@ -110,27 +110,31 @@ def encode_frame_transforms(transforms, log_time_ns: np.ndarray):
     second_digits, second_lengths = varint_digits(ns // billion)
     nano_digits, nano_lengths = varint_digits(ns % billion)
     kinds = second_lengths * _MAX_VARINT + nano_lengths
+    # Rows sorted by timestamp size (in sample order within a size): each size is a slice.
+    order = np.argsort(kinds, kind="stable")
+    kinds, second_digits, nano_digits = kinds[order], second_digits[order], nano_digits[order]
+    pose = np.stack([np.concatenate([translation, rotation], axis=1)
+                     for _, _, translation, rotation in transforms], axis=1)[order]  # (n, T, 7)
     names = tuple((parent, child) for parent, child, _, _ in transforms)
+    bounds = [0, *(np.flatnonzero(np.diff(kinds)) + 1).tolist(), len(kinds)]
     groups = []
-    for kind in np.unique(kinds).tolist():
-        index = np.flatnonzero(kinds == kind)
-        n = len(index)
-        seconds, nanos = divmod(kind, _MAX_VARINT)
+    for begin, end in zip(bounds[:-1], bounds[1:], strict=False):
+        n = end - begin
+        seconds, nanos = divmod(int(kinds[begin]), _MAX_VARINT)
         stamp = np.empty((n, 2 + seconds + nanos), dtype=np.uint8)  # Timestamp sec, nsec
         stamp[:, 0], stamp[:, 1 + seconds] = 0x08, 0x10
-        stamp[:, 1:1 + seconds] = second_digits[index, :seconds]
-        stamp[:, 2 + seconds:] = nano_digits[index, :nanos]
+        stamp[:, 1:1 + seconds] = second_digits[begin:end, :seconds]
+        stamp[:, 2 + seconds:] = nano_digits[begin:end, :nanos]
         template, places = _transforms_layout(names, stamp.shape[1])
         width = len(template)
         block = np.empty((n, width), dtype=np.uint8)
         block[:] = template
-        for (_, _, translation, rotation), (stamp_at, doubles_at) in zip(
-                transforms, places, strict=True):
+        for i, (stamp_at, doubles_at) in enumerate(places):
             block[:, stamp_at:stamp_at + stamp.shape[1]] = stamp
             # translation x, y, z then rotation x, y, z, w: tag + double each, 2 bytes between
-            strided(block, doubles_at, "<f8", (n, 3), (width, 9))[:] = translation[index]
-            strided(block, doubles_at + 29, "<f8", (n, 4), (width, 9))[:] = rotation[index]
-        groups.append((index, block))
+            strided(block, doubles_at, "<f8", (n, 3), (width, 9))[:] = pose[begin:end, i, :3]
+            strided(block, doubles_at + 29, "<f8", (n, 4), (width, 9))[:] = pose[begin:end, i, 3:]
+        groups.append((order[begin:end], block))
     return groups
 
 

@@ -26,13 +26,15 @@ def varint(value: int) -> bytes:
 
 
 def varint_digits(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Varints of non-negative integers (n,): digits (n, 10) uint8 (row i's varint is
-    digits[i, :lengths[i]]) and lengths (n,)."""
+    """Varints of non-negative integers (n,): digits (n, k) uint8, k the longest varint's
+    length (row i's varint is digits[i, :lengths[i]]), and lengths (n,)."""
     v = np.asarray(values, dtype=np.uint64)
-    groups = np.arange(_MAX_VARINT_BYTES, dtype=np.uint64)
+    # Only as many 7-bit groups as the largest value needs (timestamps: 5 of the 10).
+    count = max(1, min(_MAX_VARINT_BYTES, (int(v.max(initial=0)).bit_length() + 6) // 7))
+    groups = np.arange(count, dtype=np.uint64)
     lengths = 1 + np.sum(v[:, None] >= (np.uint64(1) << (np.uint64(7) * groups[1:])), axis=1)
     digits = ((v[:, None] >> (np.uint64(7) * groups)) & np.uint64(0x7F)).astype(np.uint8)
-    digits[np.arange(_MAX_VARINT_BYTES)[None, :] < (lengths - 1)[:, None]] |= 0x80
+    digits[np.arange(count)[None, :] < (lengths - 1)[:, None]] |= 0x80
     return digits, lengths.astype(np.int64)
 
 
