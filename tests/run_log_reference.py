@@ -1,7 +1,8 @@
 """The straightforward encoders that orchestrator.runlog replaced with faster ones, kept as the
 references those must match byte for byte (tests/test_run_log_chunk.py): ChunkBuilder (one
 structured field write per double, a join of slices in log-time order) and
-encode_frame_transforms (/tf rows concatenated part by part).
+encode_frame_transforms (/tf rows concatenated part by part) and sample_channels (the channel
+layout worked out again every period).
 
 The records of one MCAP chunk, built with numpy a whole batch of messages at a time.
 
@@ -12,6 +13,7 @@ message index of a chunk maps each channel to (log time, offset in the chunk's r
 
 from __future__ import annotations
 
+import json
 import struct
 from collections import defaultdict
 
@@ -19,7 +21,16 @@ import numpy as np
 from mcap.opcode import Opcode
 
 from orchestrator.runlog.chunk import MESSAGE_HEADER, DoubleBatch
+from orchestrator.runlog.samples import CheckedPeriod, SampleChannel, _packed_tag, double_tag
+from orchestrator.runlog.schemas import (
+    CYLINDER_STATE,
+    JOINT_STATE,
+    PILE_BUCKET_STATE,
+    SIGNAL_SAMPLE,
+    cylinder_signals,
+)
 from orchestrator.runlog.wire import doubles, field, rows, varint, varint_digits
+from plant_models.plant import JOINTS
 
 MESSAGE_HEADER_FIELDS = (
     ("opcode", "u1"), ("length", "<u8"), ("channel", "<u2"), ("sequence", "<u4"),
@@ -235,3 +246,41 @@ _MAX_VARINT = 16
 
 def _string_field(number: int, text: str) -> bytes:
     return field(number, text.encode())
+
+
+def sample_channels(period: CheckedPeriod, times_s: np.ndarray) -> list[SampleChannel]:
+    """The high-rate channels of a period with campaign times times_s (m,) s: /joints always;
+    /cylinder/<joint> and /pile/bucket with the fields whose signals were measured; every other
+    signal on /signals/<component> (the part of its name before the first dot)."""
+    out = [SampleChannel("/joints", JOINT_STATE, {},
+                         tuple(double_tag(n + 1) for n in range(len(JOINT_STATE.fields))),
+                         np.column_stack([times_s, period.reference_rad, period.joints_rad]))]
+    groups = [(f"/cylinder/{joint}", CYLINDER_STATE, cylinder_signals(joint))
+              for joint in JOINTS]
+    groups.append(("/pile/bucket", PILE_BUCKET_STATE, PILE_BUCKET_STATE.signals))
+    signals, used = period.signals, set()
+    for topic, message, sources in groups:
+        mapping = {f: s for f, s in zip(message.fields, sources, strict=True) if s}
+        fields = [f for f, s in mapping.items() if s in signals]
+        if not fields:
+            continue
+        used.update(mapping[f] for f in fields)
+        out.append(SampleChannel(
+            topic, message, {"signals": json.dumps(mapping)},
+            tuple(double_tag(message.number(f)) for f in ("t_s", *fields)),
+            np.column_stack([times_s] + [signals[mapping[f]] for f in fields]),
+        ))
+    components: dict[str, list[str]] = {}
+    for name in signals:
+        if name not in used:
+            components.setdefault(name.split(".", 1)[0] if "." in name else "plant",
+                                  []).append(name)
+    for component, names in components.items():
+        packed = _packed_tag(SIGNAL_SAMPLE.number("values"), len(names))
+        out.append(SampleChannel(
+            f"/signals/{component}", SIGNAL_SAMPLE, {"names": json.dumps(names)},
+            (double_tag(1), packed) + (b"",) * (len(names) - 1),
+            np.column_stack([times_s] + [signals[n] for n in names]),
+        ))
+    return out
+

@@ -1,16 +1,20 @@
 """orchestrator.runlog's fast encoders against the straightforward ones they replaced
 (tests/run_log_reference.py), byte for byte: chunk records and message indexes for batches of
 any field layout, single messages and grouped payloads added in any time order; /tf messages
-for any joints and times."""
+for any joints and times; the sample channels of any set of signals; package versions."""
+
+from importlib import metadata
 
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from run_log_reference import ChunkBuilder as ReferenceBuilder
 from run_log_reference import encode_frame_transforms as reference_transforms
+from run_log_reference import sample_channels as reference_channels
 
 from orchestrator.runlog.chunk import BufferPool, ChunkBuilder, DoubleBatch
-from orchestrator.runlog.samples import double_tag
+from orchestrator.runlog.metadata import _PACKAGES, package_versions
+from orchestrator.runlog.samples import CheckedPeriod, double_tag, sample_channels
 from orchestrator.runlog.scene import encode_frame_transforms, link_transforms
 from plant_models import presets
 
@@ -93,3 +97,31 @@ def test_frame_transforms_equal_the_reference_encoding(seed, n, start_ns):
     for (index, payload), (ref_index, ref_payload) in zip(fast, reference, strict=True):
         assert np.array_equal(index, ref_index)
         assert payload.tobytes() == ref_payload.tobytes()
+
+
+SIGNALS = ["boom.x", "boom.v", "boom.p_A", "boom.u", "stick.F", "bucket.x", "pile.bucket_mass",
+           "pile.F_y", "tip.y", "supply.p_pump", "supply.p_LS", "extra", "pile.other"]
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.sampled_from(SIGNALS), unique=True), st.integers(1, 20))
+def test_sample_channels_equal_the_reference_layout(names, m):
+    rng = np.random.default_rng(m)
+    period = CheckedPeriod(np.arange(m) * 0.01, rng.normal(size=(m, 3)), rng.normal(size=(m, 3)),
+                           {name: rng.normal(size=m) for name in names}, None, None)
+    times = period.t_s + 100.0
+    fast, reference = sample_channels(period, times), reference_channels(period, times)
+    assert [(c.topic, c.message, c.metadata, c.prefixes) for c in fast] == [
+        (c.topic, c.message, c.metadata, c.prefixes) for c in reference]
+    for channel, expected in zip(fast, reference, strict=True):
+        assert np.array_equal(channel.values, expected.values)
+
+
+def test_package_versions_equal_importlib_metadata():
+    versions = package_versions()
+    for name, distribution in _PACKAGES:
+        try:
+            expected = metadata.version(distribution)
+        except metadata.PackageNotFoundError:
+            expected = "not installed"
+        assert versions[name] == expected
