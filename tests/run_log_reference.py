@@ -16,12 +16,13 @@ from __future__ import annotations
 import json
 import struct
 from collections import defaultdict
+from dataclasses import dataclass
 
 import numpy as np
 from mcap.opcode import Opcode
 
-from orchestrator.runlog.chunk import MESSAGE_HEADER, DoubleBatch
-from orchestrator.runlog.samples import CheckedPeriod, SampleChannel, _packed_tag, double_tag
+from orchestrator.runlog.chunk import MESSAGE_HEADER
+from orchestrator.runlog.samples import CheckedPeriod, _packed_tag, double_tag
 from orchestrator.runlog.schemas import (
     CYLINDER_STATE,
     JOINT_STATE,
@@ -37,6 +38,28 @@ MESSAGE_HEADER_FIELDS = (
     ("log_time", "<u8"), ("publish_time", "<u8"),
 )
 _RECORD_PREFIX = struct.Struct("<BQ")
+
+
+@dataclass(frozen=True)
+class DoubleBatch:
+    """Fixed-size messages of one channel, one per sample: payload = for each column j,
+    `prefixes[j]` (constant bytes, e.g. a protobuf tag) then the float64 `values[:, j]`."""
+
+    channel_id: int
+    first_sequence: int
+    prefixes: tuple[bytes, ...]
+    values: np.ndarray  # (m, len(prefixes)) float64
+
+
+@dataclass(frozen=True)
+class SampleChannel:
+    """One high-rate channel of a period, its values as an (m, k) matrix."""
+
+    topic: str
+    message: object
+    metadata: dict[str, str]
+    prefixes: tuple[bytes, ...]
+    values: np.ndarray
 
 
 class ChunkBuilder:

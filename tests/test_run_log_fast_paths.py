@@ -9,6 +9,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from run_log_reference import ChunkBuilder as ReferenceBuilder
+from run_log_reference import DoubleBatch as ReferenceBatch
 from run_log_reference import encode_frame_transforms as reference_transforms
 from run_log_reference import sample_channels as reference_channels
 
@@ -54,7 +55,9 @@ def build(builder, additions):
         if kind == "batches":
             batches = []
             for prefixes, values in content:
-                batches.append(DoubleBatch(channel, 3 * channel, prefixes, values))
+                batches.append(ReferenceBatch(channel, 3 * channel, prefixes, values)
+                               if isinstance(builder, ReferenceBuilder)
+                               else DoubleBatch(channel, 3 * channel, prefixes, tuple(values.T)))
                 channel += 1
             builder.add_batches(batches, extra)
         elif kind == "message":
@@ -114,7 +117,7 @@ def test_sample_channels_equal_the_reference_layout(names, m):
     assert [(c.topic, c.message, c.metadata, c.prefixes) for c in fast] == [
         (c.topic, c.message, c.metadata, c.prefixes) for c in reference]
     for channel, expected in zip(fast, reference, strict=True):
-        assert np.array_equal(channel.values, expected.values)
+        assert np.array_equal(np.column_stack(channel.columns), expected.values)
 
 
 def test_package_versions_equal_importlib_metadata():

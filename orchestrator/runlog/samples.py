@@ -41,13 +41,13 @@ class CheckedPeriod:
 @dataclass(frozen=True)
 class SampleChannel:
     """One high-rate channel of a period: one message per sample whose payload is, for each
-    column j, `prefixes[j]` (protobuf tag bytes) then the double `values[:, j]`."""
+    column j, `prefixes[j]` (protobuf tag bytes) then the double `columns[j][i]`."""
 
     topic: str
     message: DoubleMessage
     metadata: dict[str, str]
     prefixes: tuple[bytes, ...]
-    values: np.ndarray  # (m, len(prefixes))
+    columns: tuple[np.ndarray, ...]  # len(prefixes) arrays (m,)
 
 
 def double_tag(number: int) -> bytes:
@@ -116,12 +116,12 @@ def sample_channels(period: CheckedPeriod, times_s: np.ndarray) -> list[SampleCh
     """The high-rate channels of a period with campaign times times_s (m,) s: /joints always;
     /cylinder/<joint> and /pile/bucket with the fields whose signals were measured; every other
     signal on /signals/<component> (the part of its name before the first dot)."""
-    out = [SampleChannel("/joints", JOINT_STATE, {}, _JOINT_PREFIXES,
-                         np.column_stack([times_s, period.reference_rad, period.joints_rad]))]
     signals = period.signals
+    out = [SampleChannel("/joints", JOINT_STATE, {}, _JOINT_PREFIXES,
+                         (times_s, *period.reference_rad.T, *period.joints_rad.T))]
     for topic, message, metadata, prefixes, names in _signal_layout(tuple(signals)):
         out.append(SampleChannel(topic, message, dict(metadata), prefixes,
-                                 np.column_stack([times_s] + [signals[n] for n in names])))
+                                 (times_s, *(signals[name] for name in names))))
     return out
 
 
@@ -184,4 +184,4 @@ def display_channel(period: CheckedPeriod, times_s: np.ndarray, picked: np.ndarr
         fields.append(name)
     return SampleChannel("/display", DISPLAY_SAMPLE, {},
                          tuple(double_tag(DISPLAY_SAMPLE.number(f)) for f in ("t_s", *fields)),
-                         np.column_stack(columns))
+                         tuple(columns))

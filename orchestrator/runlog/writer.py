@@ -268,13 +268,13 @@ class RunLog:
         for sample in sample_channels(period_data, times):
             channel = self._proto_channel(sample.topic, sample.message, sample.metadata)
             first = self._writer.reserve_sequence(channel, len(times))
-            batches.append(DoubleBatch(channel, first, sample.prefixes, sample.values))
+            batches.append(DoubleBatch(channel, first, sample.prefixes, sample.columns))
         chunk.add_batches(batches, log_ns)
         picked = np.arange(0, len(t), scene.decimation_stride(t, self._rate_hz))
         display = display_channel(period_data, times, picked)
         channel = self._proto_channel(display.topic, display.message, display.metadata)
         chunk.add_batches([DoubleBatch(channel, self._writer.reserve_sequence(channel, len(picked)),
-                                       display.prefixes, display.values)], log_ns[picked])
+                                       display.prefixes, display.columns)], log_ns[picked])
         tip_path = None
         if self._geometry is not None:
             self._add_arm(chunk, joints[picked], log_ns[picked], start_ns)
