@@ -292,3 +292,4 @@ class McapChunkWriter:
         self._write(MAGIC)
         self._stream.flush()
         self._stream.close()
+        self.pool = BufferPool()  # the chunks' MBs need not outlive the file
