@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from fmus import fast_step
+from fmus.descriptions import model_description
 from fmus.fmu_messages import recording_callbacks_2, recording_logger_3
 
 __all__ = ["run_fmpy", "FastSlave", "NativeStep", "fmi_major", "value_kind", "REAL_TYPES"]
@@ -120,11 +121,11 @@ class FastSlave:
     def __init__(self, fmu: str | Path, inputs: Sequence[str], outputs: Sequence[str],
                  start_values: Mapping[str, float] | None = None,
                  instance_name: str = "instance", unzip_dir: str | Path | None = None) -> None:
-        from fmpy import extract, read_model_description
+        from fmpy import extract
         from fmpy.fmi2 import FMU2Slave
         from fmpy.fmi3 import FMU3Slave
 
-        self.description = read_model_description(str(fmu))
+        self.description = model_description(fmu)
         # Read by the step watchdog while the FMU is loaded and initialized
         # (orchestrator.campaign.watchdog.stuck_call): what is being made, and which making.
         self.making = f"{instance_name} ({self.description.modelName})", next(_SERIALS)

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fmus.descriptions import model_description
 from fmus.runs import REAL_TYPES, FastSlave, NativeStep, fmi_major
 from orchestrator.plants.derived import DerivedOutput, derive_outputs
 from plant_models.model_spec import (
@@ -129,9 +130,7 @@ def check_component(component: str, role: str, spec: FmuSpec, description) -> di
 def derivation_notes(component: str, role: str, spec: FmuSpec) -> dict[str, str]:
     """output role -> how the master derives it for `spec` in `role` (DerivedOutput.note), {}
     when the FMU has every output; for the run log. ValueError as check_component."""
-    from fmpy import read_model_description
-
-    description = read_model_description(str(fmu_path(spec, component)))
+    description = model_description(fmu_path(spec, component))
     ports = check_component(component, role, spec, description)
     return {output: derived.note() for output, derived in
             derive_outputs(component, role, spec, description, ports).items()}
@@ -320,7 +319,7 @@ class Master:
                  start_values: Mapping[str, Mapping[str, float]] | None = None) -> None:
         if not step_s > 0.0:
             raise ValueError(f"communication step must be > 0 s, got {step_s!r}")
-        from fmpy import extract, read_model_description
+        from fmpy import extract
 
         self.step_s = float(step_s)
         self.components: dict[str, Component] = {}
@@ -330,7 +329,7 @@ class Master:
         for name, (role, spec) in components.items():
             path = fmu_path(spec, name)
             try:
-                description = read_model_description(str(path))
+                description = model_description(path)
             except Exception as error:
                 raise ValueError(f"{name}: cannot read {path.name}: {error}") from None
             ports = check_component(name, role, spec, description)

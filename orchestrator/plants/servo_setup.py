@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 from functools import lru_cache
 
+from fmus.descriptions import model_description
 from fmus.runs import value_kind
 from orchestrator.plants.identify import identify_cylinder
 from orchestrator.plants.master import fmu_path
@@ -35,18 +36,9 @@ def design_servo_cached(model: CylinderModel, *settings) -> ServoDesign:
 def fmu_description(component: str, spec):
     path = fmu_path(spec, component)
     try:
-        stat = path.stat()
-        return _read_description(str(path), stat.st_mtime_ns, stat.st_ctime_ns, stat.st_size)
+        return model_description(path)
     except Exception as error:
         raise ValueError(f"{component}: cannot read {path.name}: {error}") from None
-
-
-@lru_cache(maxsize=64)
-def _read_description(path: str, *stat):
-    """The model description of the FMU file at `path` as it is (`stat`: its identity now)."""
-    from fmpy import read_model_description
-
-    return read_model_description(path)
 
 
 def model_from_fmu(description, parameters) -> CylinderModel | None:

@@ -13,10 +13,10 @@ from __future__ import annotations
 import copy
 import math
 import re
-from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
+from fmus.descriptions import model_description as fmus_description
 from fmus.runs import value_kind
 from orchestrator.plants.master import check_component, fmu_path
 from orchestrator.scenario.errors import ScenarioError
@@ -97,18 +97,9 @@ def model_description(path: Path):
     """fmpy's model description of the FMU file at `path`, read once per version of the file;
     ValueError for a file that is not an FMU."""
     try:
-        stat = path.stat()
-        return _read_description(str(path), stat.st_mtime_ns, stat.st_ctime_ns, stat.st_size)
+        return fmus_description(path)
     except Exception as error:  # fmpy raises many kinds for a file that is not an FMU
         raise ValueError(f"not a readable FMU: {error}") from None
-
-
-@lru_cache(maxsize=64)
-def _read_description(path: str, *stat):
-    """The model description of the FMU file at `path` as it is (`stat`: its identity now)."""
-    from fmpy import read_model_description
-
-    return read_model_description(path)
 
 
 def _without_component(error: ValueError, component: str) -> str:
