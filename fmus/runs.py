@@ -277,6 +277,8 @@ class FastSlave:
         n_inputs): the outputs after each step, (n, n_outputs). One foreign call where the
         one-call step serves (fmus/fast_step/steps.c; no Python frame per step, so the step
         watchdog does not see into it), else step by step; the same numbers either way."""
+        if self.slave is None:
+            raise RuntimeError(f"{self.description.modelName}: the FMU instance is closed")
         series = np.ascontiguousarray(inputs, dtype=float)
         if series.ndim != 2 or series.shape[1] != len(self.inputs):
             raise ValueError(f"inputs must be (n, {len(self.inputs)}), got {series.shape}")
@@ -354,6 +356,7 @@ class FastSlave:
 
     def close(self) -> None:
         """Terminate and free the instance, unload the binary, remove the unzip folder."""
+        self.native_step = None  # nothing may step the freed instance from C
         if self.slave is not None:
             try:
                 self.slave.terminate()

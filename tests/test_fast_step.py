@@ -98,3 +98,11 @@ def test_a_run_refuses_inputs_of_another_shape():
     with FastSlave(fmus.build("HydraulicCylinder"), ["u", "F_ext"], ["x"]) as slave, \
             pytest.raises(ValueError, match=r"inputs must be \(n, 2\)"):
         slave.run(np.zeros((5, 3)), H)
+
+
+def test_a_closed_instance_refuses_a_run():
+    slave = FastSlave(fmus.build("HydraulicCylinder"), ["u", "F_ext"], ["x"])
+    slave.close()
+    assert slave.native_step is None
+    with pytest.raises(RuntimeError, match="closed"):
+        slave.run(np.zeros((5, 2)), H)

@@ -145,13 +145,28 @@ def test_an_fmu_failing_in_the_loop_in_c_reads_as_from_python(tmp_path, monkeypa
 
     failing = patched_cylinder(tmp_path, FAIL, 2.0, "Failing")
     overrides = ["periods=1", f"plant.stick.fmu={failing}"]
-    messages = []
-    for run in (NativeCoupling._run_in_c, NativeCoupling._run_in_python):
-        monkeypatch.setattr(NativeCoupling, "_run_in_c", run)
+    cls = simulated_excavator.SimulatedExcavator
+    close = cls.close
+    seen = []
+
+    def closing(self):  # what the loop left when the FMU failed, before the plant closes
+        seen.append((self._loop.clock, [servo.state() for servo in self._servos]))
+        close(self)
+
+    monkeypatch.setattr(cls, "close", closing)
+    messages, ran = [], []
+    for name, run in (("c", NativeCoupling._run_in_c), ("python", NativeCoupling._run_in_python)):
+        def counted(self, *args, run=run, name=name):
+            ran.append(name)
+            return run(self, *args)
+
+        monkeypatch.setattr(NativeCoupling, "_run_in_c", counted)
         messages.append(run_campaign(load_scenario(PAPER, overrides)).message)
+    assert ran == ["c", "python"]  # one stroke reference each: the failure ends the period
     assert messages[0] == messages[1]
     assert "stick (HydraulicCylinder): fmi2DoStep failed at t = 2.0" in messages[0]
     assert "a burst hose" in messages[0]
+    assert seen[0] == seen[1] and seen[0][0][0] == 200  # the clock: 200 steps done
 
 
 def test_the_board_names_the_fmu_in_a_step_and_goes_with_the_plant(tmp_path, monkeypatch):
@@ -173,3 +188,18 @@ def test_the_board_names_the_fmu_in_a_step_and_goes_with_the_plant(tmp_path, mon
         folder = plant._loop.temporary_folders()[0]
         assert folder in plant.temporary_folders() and Path(folder, "board").is_file()
     assert not Path(folder).exists()
+
+
+def test_a_closed_loop_or_plant_is_never_stepped_from_c():
+    from orchestrator.campaign.loop import build_plant
+
+    with build_plant(load_scenario(PAPER, ["periods=1"])) as plant:
+        middle = [0.5 * table.stroke_m for table in plant.coupling.tables]
+        plant._start(np.array(plant.coupling.kinematics(*middle)[:3]))
+        loop, still = plant._loop, np.zeros((3, 3))
+        strokes = np.repeat(np.array(middle)[None, :], 3, axis=0)
+        loop.close()  # the board is gone: the FMUs, still open, step from Python
+        rows, _, steps, _ = loop.track(strokes, still, still, 37, 0, 0.0)
+        assert steps == 3 and np.isfinite(rows).all()
+    with pytest.raises(RuntimeError, match="closed"):  # and a closed plant's FMUs refuse
+        loop.track(strokes, still, still, 37, 3, 0.03)

@@ -171,6 +171,8 @@ def _die_with(parent: int) -> None:
         os._exit(1)
 
 
+# Signals a process raises on itself in native code (a bad access, abort(), a trap).
+_RAISED_SIGNALS = {signal.SIGSEGV, signal.SIGBUS, signal.SIGABRT, signal.SIGFPE, signal.SIGILL}
 _EXIT_NOTE = "excosim exit: "  # a line of the crash file the exit handler wrote
 _EXIT_HANDLERS: list = []  # the C atexit handler of this process, kept alive
 
@@ -228,7 +230,9 @@ def _died(status: int, crash: Path, log_path: Path, period_offset: int) -> Child
         if line.rstrip().endswith(" in __init__") and "fmus/runs.py" in line:
             where = " while an FMU was loaded and initialized"
             break
-    if not where:  # the step loop in C leaves no frame per FMU step: its board names it
+    # The step loop in C leaves no frame per FMU step: its board names the FMU, for a signal
+    # the process raised itself (a kill from outside, e.g. SIGKILL, would blame the FMU).
+    if not where and -code in _RAISED_SIGNALS:
         stepping = stepping_after_death(crash.parent / "tmp")
         if stepping is not None:
             where = f" in the step of FMU {stepping[1]}"

@@ -146,7 +146,8 @@ class ChunkBuilder:
         """Hand the buffers back to the pool; the chunk's records are then no longer valid."""
         if self._pool is not None:
             self._pool.give_back(self._taken)
-        self._taken, self._built = [], None
+        # The groups point into the buffers handed back: nothing may rebuild from them.
+        self._taken, self._built, self._groups = [], None, []
 
     def _add_group(self, times: np.ndarray, width: int, data,
                    entries: list[tuple[int, np.ndarray]]) -> None:

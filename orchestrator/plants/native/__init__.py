@@ -188,9 +188,11 @@ class NativeCoupling:
         return [] if self._board is None else [self._board.folder]
 
     def close(self) -> None:
-        """Remove the board; safe twice."""
-        if self._board is not None:
-            self._board.close()
+        """Remove the board; safe twice. The loop in C is gone with it: a later track() steps
+        the FMUs from Python (and so meets their own state, e.g. closed)."""
+        board, self._board = self._board, None
+        if board is not None:
+            board.close()
 
     def track(self, strokes: np.ndarray, rates: np.ndarray, accelerations: np.ndarray,
               n_columns: int, steps: int, pile_time: float) -> tuple[np.ndarray, np.ndarray,

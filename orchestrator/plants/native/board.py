@@ -51,7 +51,10 @@ class Board:
         self.folder = tempfile.mkdtemp(prefix=FOLDER_PREFIX)
         path = Path(self.folder) / FILE_NAME
         with open(path, "w+b") as file:
-            file.truncate(ctypes.sizeof(BoardLayout))
+            # Written, not truncated to size: a sparse page on a full disk would end the
+            # process with SIGBUS at the first store instead of an OSError here.
+            file.write(bytes(ctypes.sizeof(BoardLayout)))
+            file.flush()
             self._map = mmap.mmap(file.fileno(), ctypes.sizeof(BoardLayout))
         self.layout = BoardLayout.from_buffer(self._map)
         self.layout.which, self.layout.t = -1, 0.0
@@ -64,19 +67,29 @@ class Board:
         return ctypes.addressof(self.layout)
 
     def reading(self) -> tuple[int, float, str] | None:
-        """(index, t s, name) of the FMU in a step now, None when none is."""
-        which = int(self.layout.which)
+        """(index, t s, name) of the FMU in a step now, None when none is (or the board is
+        closed: the watchdog's thread may look while the main thread closes it)."""
+        layout = getattr(self, "layout", None)
+        if layout is None:
+            return None
+        which, t = int(layout.which), float(layout.t)
         if not 0 <= which < FMUS:
             return None
-        return which, float(self.layout.t), self.labels[which]
+        return which, t, self.labels[which]
 
     def close(self) -> None:
         """Unmap and remove the folder; safe twice."""
-        if self._map is not None:
-            del self.layout  # the exported buffer must go before the map can close
+        if self._map is None:
+            return
+        layout = self.layout
+        del self.layout  # readers see a closed board from here (reading() -> None)
+        try:
+            del layout  # the exported buffer must go before the map can close
             self._map.close()
-            self._map = None
-            shutil.rmtree(self.folder, ignore_errors=True)
+        except BufferError:  # a view is still held somewhere: the map goes with the process
+            pass
+        self._map = None
+        shutil.rmtree(self.folder, ignore_errors=True)
 
 
 # The code object of the loop's frame that holds a `board` local (NativeCoupling.track sets
@@ -90,7 +103,7 @@ def stepping_in(frame: FrameType | None) -> tuple[int, float, str] | None:
     if frame is None or frame.f_code not in LOOP_CODES:
         return None
     board = frame.f_locals.get("board")
-    reading = board.reading() if isinstance(board, Board) and board._map is not None else None
+    reading = board.reading() if isinstance(board, Board) else None
     if reading is None:
         return None
     which, t, label = reading
