@@ -1,14 +1,9 @@
 """The straightforward encoders that orchestrator.runlog replaced with faster ones, kept as the
-references those must match byte for byte (tests/test_run_log_chunk.py): ChunkBuilder (one
+references those must match byte for byte (tests/test_run_log_fast_paths.py): ChunkBuilder (one
 structured field write per double, a join of slices in log-time order) and
 encode_frame_transforms (/tf rows concatenated part by part) and sample_channels (the channel
-layout worked out again every period).
-
-The records of one MCAP chunk, built with numpy a whole batch of messages at a time.
-
-Message records (https://mcap.dev/spec#message-op0x05): opcode 0x05, record length (u64),
-channel id (u16), sequence (u32), log time and publish time (u64, ns), then the payload. The
-message index of a chunk maps each channel to (log time, offset in the chunk's records) pairs.
+layout worked out again every period). The lines these share with the new code are the parts
+that did not change: kept whole here so that the reference does not lean on what it checks.
 """
 
 from __future__ import annotations
