@@ -183,6 +183,9 @@ class RecordingLog:
     def log_period(self, record, measurement, t0_s):
         self.periods.append((record["k"], t0_s))
 
+    def wait_written(self):
+        pass
+
     def close(self, termination, message=""):
         self.closed.append((termination, message))
 

@@ -4,6 +4,7 @@ any field layout, single messages and grouped payloads added in any time order; 
 for any joints and times; the sample channels of any set of signals; package versions."""
 
 from importlib import metadata
+from unittest import mock
 
 import numpy as np
 from hypothesis import given, settings
@@ -13,6 +14,7 @@ from run_log_reference import DoubleBatch as ReferenceBatch
 from run_log_reference import encode_frame_transforms as reference_transforms
 from run_log_reference import sample_channels as reference_channels
 
+from orchestrator.runlog import native
 from orchestrator.runlog.chunk import BufferPool, ChunkBuilder, DoubleBatch
 from orchestrator.runlog.metadata import _PACKAGES, package_versions
 from orchestrator.runlog.samples import CheckedPeriod, double_tag, sample_channels
@@ -37,8 +39,12 @@ def chunk_content(draw):
         if kind == "batches":
             channels = [tuple(draw(st.lists(PREFIXES, min_size=1, max_size=6)))
                         for _ in range(draw(st.integers(1, 4)))]
-            additions.append((kind, [(p, rng.normal(size=(n, len(p)))) for p in channels],
-                              times))
+            batches = [(p, rng.normal(size=(n, len(p)))) for p in channels]
+            # One array as every batch's first column, as the sample times are in a run.
+            shared = rng.normal(size=n) if draw(st.booleans()) else None
+            for _, values in batches if shared is not None else ():
+                values[:, 0] = shared
+            additions.append((kind, (batches, shared), times))
         elif kind == "message":
             additions.append((kind, int(times[0]), rng.bytes(int(rng.integers(0, 50)))))
         else:
@@ -54,10 +60,12 @@ def build(builder, additions):
         channel += 1
         if kind == "batches":
             batches = []
+            content, shared = content
             for prefixes, values in content:
+                columns = tuple(values.T) if shared is None else (shared, *values.T[1:])
                 batches.append(ReferenceBatch(channel, 3 * channel, prefixes, values)
                                if isinstance(builder, ReferenceBuilder)
-                               else DoubleBatch(channel, 3 * channel, prefixes, tuple(values.T)))
+                               else DoubleBatch(channel, 3 * channel, prefixes, columns))
                 channel += 1
             builder.add_batches(batches, extra)
         elif kind == "message":
@@ -72,18 +80,29 @@ def build(builder, additions):
 
 
 @settings(max_examples=200, deadline=None)
-@given(chunk_content())
-def test_records_and_indexes_equal_the_reference_builder(additions):
+@given(chunk_content(), st.booleans())
+def test_records_and_indexes_equal_the_reference_builder(additions, in_c):
+    """Rows filled by rows.c and by numpy (no C library), records asked for before or after
+    the message indexes (the writer thread asks after)."""
     reference = build(ReferenceBuilder(), additions)
     pool = BufferPool()
     # without a pool, then twice from one pool: the second chunk reuses the first's buffers
-    for chunk_pool in (None, pool, pool):
+    for index, chunk_pool in enumerate((None, pool, pool)):
         fast = build(ChunkBuilder(chunk_pool), additions)
-        assert bytes(fast.records()) == reference.records()
+        with mock.patch.object(native, "library", native.library if in_c else lambda: None):
+            if index == 1:
+                assert fast.message_indexes() == reference.message_indexes()
+            assert bytes(fast.records()) == reference.records()
         assert fast.message_indexes() == reference.message_indexes()
         assert (fast.start_time, fast.end_time, fast.size, dict(fast.counts)) == (
             reference.start_time, reference.end_time, reference.size, dict(reference.counts))
         fast.release()
+
+
+def test_the_rows_library_is_built_where_the_fmus_are():
+    """The C fill serves wherever gcc builds the FMUs (otherwise the test above would compare
+    the numpy fill twice)."""
+    assert native.library() is not None
 
 
 @settings(max_examples=100, deadline=None)

@@ -106,7 +106,7 @@ def open_run_log(scenario: Scenario, log_path: str | Path, overwrite: bool = Fal
                   fmus=fmus, plant_kind=scenario.plant.kind,
                   target_mass_kg=scenario.target_mass_kg, geometry=scenario.geometry(),
                   sample_rate_hz=scenario.log.sample_rate_hz, overrides=scenario.overrides,
-                  overwrite=overwrite, derived=derived)
+                  overwrite=overwrite, derived=derived, background=True)
 
 
 def scenario_source_text(scenario: Scenario) -> str:
@@ -231,8 +231,13 @@ def _dig(scenario: Scenario, plant: Plant, log, records: list,
         trajectory = planner.plan(state.y_D, state.z_D)
         if isinstance(trajectory, Unreachable):  # the adaptation hands out reachable points only
             raise RuntimeError(f"D = ({state.y_D}, {state.z_D}) m: {trajectory.reason}")
+        reference = sample_reference(trajectory, step_s)
+        if log is not None:
+            # The last period went to the file while this one was planned; it is there before
+            # the plant runs again (a plant that crashes finds it on file).
+            log.wait_written()
         try:
-            measurement = plant.run_period(sample_reference(trajectory, step_s))
+            measurement = plant.run_period(reference)
             check_tracking(measurement, scenario.plant.max_tracking_error_deg)
         except Exception as failure:
             # A plant that stops mid-period may hand over what it measured: log it too.

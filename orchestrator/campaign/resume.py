@@ -258,7 +258,8 @@ def _continue(source: ResumeSource, output: str | Path | None, overwrite: bool,
     try:
         log = open_continued(source.path, None if output is None else Path(output),
                              source.prefix, periods=k, note=note, geometry=scenario.geometry(),
-                             sample_rate_hz=scenario.log.sample_rate_hz, overwrite=overwrite)
+                             sample_rate_hz=scenario.log.sample_rate_hz, overwrite=overwrite,
+                             background=True)
     except BaseException:
         plant.close()
         raise

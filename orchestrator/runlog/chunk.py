@@ -4,16 +4,20 @@ Message records (https://mcap.dev/spec#message-op0x05): opcode 0x05, record leng
 channel id (u16), sequence (u32), log time and publish time (u64, ns), then the payload. The
 message index of a chunk maps each channel to (log time, offset in the chunk's records) pairs.
 
-Speed (a paper period: 11 channels x 1,400 samples, 1.3 MB of records): fields are written
-through numpy views with the rows' byte stride (`wire.strided`), one view per run of equally
-spaced fields rather than a structured field each, the signals straight from their arrays;
-rows are put in log-time order by a scatter of fixed-size byte rows (`_byte_rows`) rather than
-a join of hundreds of slices; large buffers are reused from chunk to chunk (`BufferPool`).
+Speed (a paper period: 11 channels x 1,400 samples, 1.3 MB of records): the sample rows of
+`add_batches` are encoded when the records are made, straight to their places, by
+`orchestrator.runlog.native` (rows.c: one pass, the GIL free, so on the log's writer thread
+while the run goes on); the message indexes come from the rows' places alone, before that.
+Without the C library the same bytes come from numpy: fields written through views with the
+rows' byte stride (`wire.strided`), one view per run of equally spaced fields, then a scatter
+of fixed-size byte rows (`_byte_rows`) into log-time order. Large buffers are reused from
+chunk to chunk (`BufferPool`).
 """
 
 from __future__ import annotations
 
 import struct
+import threading
 from collections import defaultdict
 from dataclasses import dataclass
 from functools import lru_cache
@@ -21,6 +25,7 @@ from functools import lru_cache
 import numpy as np
 from mcap.opcode import Opcode
 
+from orchestrator.runlog import native
 from orchestrator.runlog.wire import strided
 
 MESSAGE_HEADER = struct.Struct("<BQHIQQ")
@@ -43,11 +48,16 @@ class DoubleBatch:
 @dataclass(frozen=True)
 class _BatchLayout:
     """Where things go in a row of `add_batches`: width (bytes), the row's constant bytes, and
-    per batch (header offset, [(first column, columns, byte offset, byte step)])."""
+    per batch (header offset, [(first column, columns, byte offset, byte step)]); for rows.c,
+    the offsets of the sequence numbers and log times (one per batch) and of the doubles (all
+    batches' columns in order)."""
 
     width: int
     template: np.ndarray  # (width,) uint8
     channels: tuple[tuple[int, tuple[tuple[int, int, int, int], ...]], ...]
+    sequence_at: np.ndarray  # (batches,) int64
+    time_at: np.ndarray  # (batches,) int64
+    double_at: np.ndarray  # (doubles,) int64
 
 
 @lru_cache(maxsize=64)  # the same channels every period: laid out once per run
@@ -55,7 +65,7 @@ def _batch_layout(batches: tuple[tuple[int, tuple[bytes, ...]], ...]) -> _BatchL
     """The row layout of (channel id, prefixes) batches: each message's header then for each
     column its prefix and double."""
     row = bytearray()
-    channels = []
+    channels, double_at = [], []
     for channel_id, prefixes in batches:
         payload = sum(len(p) for p in prefixes) + 8 * len(prefixes)
         header_at = len(row)
@@ -67,7 +77,60 @@ def _batch_layout(batches: tuple[tuple[int, tuple[bytes, ...]], ...]) -> _BatchL
             offsets.append(len(row))
             row += bytes(8)
         channels.append((header_at, tuple(_runs(offsets))))
-    return _BatchLayout(len(row), np.frombuffer(bytes(row), dtype=np.uint8), tuple(channels))
+        double_at += offsets
+    headers = np.array([header_at for header_at, _ in channels], dtype=np.int64)
+    return _BatchLayout(len(row), np.frombuffer(bytes(row), dtype=np.uint8), tuple(channels),
+                        headers + _SEQUENCE_AT, headers + _LOG_TIME_AT,
+                        np.array(double_at, dtype=np.int64))
+
+
+class _SampleRows:
+    """The rows of one `add_batches` call, kept as their values until the chunk's records are
+    made: `write(records, at)` puts row i at byte at[i]. Holds copies, not the caller's
+    arrays: the records may be made on another thread after the caller has moved on."""
+
+    def __init__(self, layout: _BatchLayout, batches: list[DoubleBatch],
+                 times: np.ndarray) -> None:
+        place: dict[int, int] = {}  # id of a column array -> its row in `values`
+        arrays, column = [], []
+        for batch in batches:
+            for values in batch.columns:
+                if id(values) not in place:  # e.g. the sample times, a column of every batch
+                    place[id(values)] = len(arrays)
+                    arrays.append(values)
+                column.append(place[id(values)])
+        self.layout = layout
+        self.values = np.stack(arrays).astype(np.float64, copy=False)  # (columns, m)
+        self.column = np.array(column, dtype=np.int64)  # per double, its row in values
+        self.first = np.array([batch.first_sequence for batch in batches], dtype=np.uint32)
+        self.times = np.array(times, dtype=np.uint64)
+
+    def write(self, records: np.ndarray, at: np.ndarray) -> None:
+        layout, m = self.layout, len(self.times)
+        at = np.ascontiguousarray(at, dtype=np.int64)
+        library = native.library()
+        if library is not None:
+            p = native.pointer
+            library.fill_rows(
+                p(records), p(at), m, layout.width, p(layout.template), p(self.times),
+                len(self.first), p(layout.sequence_at), p(self.first), p(layout.time_at),
+                len(self.column), p(layout.double_at), p(self.column), p(self.values))
+            return
+        block = np.empty((m, layout.width), dtype=np.uint8)
+        block[:] = layout.template  # constant bytes (record headers, protobuf tags)
+        counter = np.arange(m, dtype=np.uint32)
+        field = 0
+        for first, (header_at, runs) in zip(self.first, layout.channels, strict=True):
+            np.add(counter, first, out=strided(block, header_at + _SEQUENCE_AT, "<u4", (m,),
+                                               (layout.width,)))
+            strided(block, header_at + _LOG_TIME_AT, "<u8", (m, 2), (layout.width, 8))[:] = \
+                self.times[:, None]  # log time and publish time
+            for _, count, offset, step in runs:
+                doubles = strided(block, offset, "<f8", (m, count), (layout.width, step))
+                for j in range(count):
+                    doubles[:, j] = self.values[self.column[field]]
+                    field += 1
+        _byte_rows(records, layout.width)[at] = block.reshape(-1).view(f"V{layout.width}")
 
 
 def _runs(offsets: list[int]):
@@ -97,17 +160,20 @@ class BufferPool:
 
     def __init__(self) -> None:
         self._free: list[np.ndarray] = []
+        self._lock = threading.Lock()  # chunks are built on one thread, written on another
 
     def take(self, size: int) -> np.ndarray:
         """A uint8 buffer of at least `size` bytes (the smallest free one that fits)."""
-        fits = [i for i, buffer in enumerate(self._free) if len(buffer) >= size]
-        if fits:
-            return self._free.pop(min(fits, key=lambda i: len(self._free[i])))
+        with self._lock:
+            fits = [i for i, buffer in enumerate(self._free) if len(buffer) >= size]
+            if fits:
+                return self._free.pop(min(fits, key=lambda i: len(self._free[i])))
         # Headroom for the next period's slightly longer one; untouched pages cost nothing.
         return np.empty(size + size // 4, dtype=np.uint8)
 
     def give_back(self, buffers: list[np.ndarray]) -> None:
-        self._free.extend(buffers)
+        with self._lock:
+            self._free.extend(buffers)
 
 
 class ChunkBuilder:
@@ -121,17 +187,20 @@ class ChunkBuilder:
     """
 
     def __init__(self, pool: BufferPool | None = None) -> None:
-        # Each group: (rows' log times (n,), row width w (bytes), data (n * w bytes: the rows),
-        # [(channel id, message offsets inside a row (n,))], whether the times never go back).
-        # A row holds one message, or one message per channel of a batch of samples taken at
-        # the same time.
-        self._groups: list[tuple[np.ndarray, int, bytes | np.ndarray,
+        # Each group: (rows' log times (n,), row width w (bytes), data (n * w bytes: the rows,
+        # or _SampleRows that write them), [(channel id, message offsets inside a row (n,))],
+        # whether the times never go back). A row holds one message, or one message per
+        # channel of a batch of samples taken at the same time.
+        self._groups: list[tuple[np.ndarray, int, bytes | np.ndarray | _SampleRows,
                                  list[tuple[int, np.ndarray]], bool]] = []
         self.size = 0
         self.start_time: int | None = None
         self.end_time = 0
         self.counts: dict[int, int] = defaultdict(int)
-        self._built: tuple[memoryview, dict[int, bytes]] | None = None
+        # The records buffer, each row's offset in it (n,) and the message indexes; then the
+        # records themselves.
+        self._placed: tuple[np.ndarray, np.ndarray, dict[int, bytes]] | None = None
+        self._records: memoryview | None = None
         self._pool = pool
         self._taken: list[np.ndarray] = []
 
@@ -147,7 +216,7 @@ class ChunkBuilder:
         if self._pool is not None:
             self._pool.give_back(self._taken)
         # The groups point into the buffers handed back: nothing may rebuild from them.
-        self._taken, self._built, self._groups = [], None, []
+        self._taken, self._placed, self._records, self._groups = [], None, None, []
 
     def _add_group(self, times: np.ndarray, width: int, data,
                    entries: list[tuple[int, np.ndarray]]) -> None:
@@ -162,7 +231,7 @@ class ChunkBuilder:
         self.start_time = low if self.start_time is None else min(self.start_time, low)
         self.end_time = max(self.end_time, high)
         self.size += width * len(times)
-        self._built = None
+        self._placed = self._records = None
 
     def add_batches(self, batches: list[DoubleBatch], log_time_ns: np.ndarray) -> None:
         """Messages of several channels at the same sample times `log_time_ns` (m,) uint64,
@@ -172,24 +241,13 @@ class ChunkBuilder:
             if len(batch.columns) != len(batch.prefixes) or any(
                     np.shape(column) != (m,) for column in batch.columns):
                 raise ValueError(f"batch for channel {batch.channel_id} has the wrong shape")
+        if m == 0:
+            return
         layout = _batch_layout(tuple((b.channel_id, tuple(b.prefixes)) for b in batches))
-        width = layout.width
-        block = self._buffer(m * width).reshape(m, width)
-        block[:] = layout.template  # constant bytes (record headers, protobuf tags)
-        times = np.asarray(log_time_ns, dtype=np.uint64)
-        counter = np.arange(m, dtype=np.uint32)
-        entries = []
-        for batch, (header_at, runs) in zip(batches, layout.channels, strict=True):
-            np.add(counter, np.uint32(batch.first_sequence),
-                   out=strided(block, header_at + _SEQUENCE_AT, "<u4", (m,), (width,)))
-            strided(block, header_at + _LOG_TIME_AT, "<u8", (m, 2), (width, 8))[:] = \
-                times[:, None]  # log time and publish time
-            for column, count, offset, step in runs:
-                doubles = strided(block, offset, "<f8", (m, count), (width, step))
-                for j in range(count):
-                    doubles[:, j] = batch.columns[column + j]
-            entries.append((batch.channel_id, np.full(m, header_at, dtype=np.int64)))
-        self._add_group(times, width, block.reshape(-1), entries)
+        rows = _SampleRows(layout, batches, log_time_ns)
+        entries = [(batch.channel_id, np.full(m, header_at, dtype=np.int64))
+                   for batch, (header_at, _) in zip(batches, layout.channels, strict=True)]
+        self._add_group(rows.times, layout.width, rows, entries)
 
     def add_message(self, channel_id: int, sequence: int, log_time_ns: int, data: bytes) -> None:
         """One message of any size."""
@@ -223,9 +281,10 @@ class ChunkBuilder:
             self._add_group(times[index], width, rows.reshape(-1),
                             [(channel_id, np.zeros(count, dtype=np.int64))])
 
-    def _build(self) -> tuple[memoryview, dict[int, bytes]]:
-        if self._built is not None:
-            return self._built
+    def _place(self) -> tuple[np.ndarray, np.ndarray, dict[int, bytes]]:
+        """Where each row goes (log-time order) and the message indexes; the records buffer."""
+        if self._placed is not None:
+            return self._placed
         groups = self._groups
         times = np.concatenate([g[0] for g in groups])
         lengths = np.repeat([g[1] for g in groups], [len(g[0]) for g in groups])
@@ -235,13 +294,9 @@ class ChunkBuilder:
         records = self._buffer(self.size)
         index: dict[int, list[tuple[np.ndarray, np.ndarray, bool]]] = defaultdict(list)
         base = 0
-        for g_times, width, data, entries, in_order in groups:
+        for g_times, _, _, entries, in_order in groups:
             at = placed[base:base + len(g_times)]
             base += len(g_times)
-            if len(at) == 1:
-                records[at[0]:at[0] + width] = np.frombuffer(data, dtype=np.uint8)
-            else:
-                _byte_rows(records, width)[at] = np.frombuffer(data, dtype=f"V{width}")
             for channel_id, within in entries:
                 index[channel_id].append((g_times, at + within, in_order))
         indexes = {}
@@ -259,14 +314,35 @@ class ChunkBuilder:
             head = _RECORD_PREFIX.pack(Opcode.MESSAGE_INDEX, 6 + entries.nbytes)
             indexes[channel_id] = (head + struct.pack("<HI", channel_id, entries.nbytes)
                                    + entries.tobytes())
-        self._built = (memoryview(records), indexes)
-        return self._built
+        self._placed = (records, placed, indexes)
+        return self._placed
 
     def records(self) -> memoryview:
-        """The chunk's records, in log-time order (a bytes-like view)."""
-        return self._build()[0] if self._groups else memoryview(b"")
+        """The chunk's records, in log-time order (a bytes-like view). Once
+        `message_indexes` has been called, this may be called on another thread (nothing is
+        added meanwhile): the sample rows are encoded here, mostly in C with the GIL free."""
+        if not self._groups:
+            return memoryview(b"")
+        if self._records is None:
+            records, placed, _ = self._place()
+            library, base = native.library(), 0
+            for g_times, width, data, _, _ in self._groups:
+                at = placed[base:base + len(g_times)]
+                base += len(g_times)
+                if isinstance(data, _SampleRows):
+                    data.write(records, at)
+                elif len(at) == 1:
+                    records[at[0]:at[0] + width] = np.frombuffer(data, dtype=np.uint8)
+                elif library is not None:
+                    rows = np.frombuffer(data, dtype=np.uint8)
+                    library.place_rows(native.pointer(records), native.pointer(at), len(at),
+                                       width, native.pointer(rows))
+                else:
+                    _byte_rows(records, width)[at] = np.frombuffer(data, dtype=f"V{width}")
+            self._records = memoryview(records)
+        return self._records
 
     def message_indexes(self) -> dict[int, bytes]:
         """Channel id -> its MessageIndex record (entries sorted by log time)."""
-        return self._build()[1] if self._groups else {}
+        return self._place()[2] if self._groups else {}
 

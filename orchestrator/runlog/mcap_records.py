@@ -13,6 +13,11 @@ followed by its MessageIndex records) in the data section, in the order they are
 summary offsets), Footer and magic. `flush` pushes everything to the operating system (and
 optionally to the disk), so a process killed after a flush leaves a file a streaming reader
 reads up to that point.
+
+With `background` (the default), the file work (compressing chunks, CRCs, writes, flushes)
+runs in order on the writer's own thread (`orchestrator.runlog.write_behind`): each call
+encodes what it adds and hands the bytes over; `flush(wait=True)` and `finish` wait for the
+thread. Ids, sequence numbers and the schema and channel lists are the caller's thread's.
 """
 
 from __future__ import annotations
@@ -43,6 +48,7 @@ from mcap.records import (
 )
 
 from orchestrator.runlog.chunk import BufferPool, ChunkBuilder
+from orchestrator.runlog.write_behind import WriteBehind
 
 MAGIC = b"\x89MCAP0\r\n"
 _RECORD_PREFIX = struct.Struct("<BQ")
@@ -50,31 +56,39 @@ _RECORD_PREFIX = struct.Struct("<BQ")
 
 class McapChunkWriter:
     """Writes an MCAP file to `stream` (opened for binary writing; the writer closes it at
-    `finish`). `library` goes in the Header; chunks are zstd-compressed at `compression_level`."""
+    `finish`). `library` goes in the Header; chunks are zstd-compressed at `compression_level`.
+    background: do the file work on a thread of the writer's own (see the module docstring);
+    False: every call has written its records when it returns."""
 
     def __init__(self, stream: BinaryIO, *, library: str, profile: str = "",
-                 compression_level: int = -1) -> None:
-        self._empty(stream, compression_level)
-        self._write(MAGIC)
-        self._write_record(Header(profile=profile, library=library))
+                 compression_level: int = -1, background: bool = True) -> None:
+        self._empty(stream, compression_level, background)
+        self._do(self._write, MAGIC)
+        self._do(self._write, _record_bytes(Header(profile=profile, library=library)))
 
     @classmethod
-    def continued(cls, stream: BinaryIO, prefix: bytes, compression_level: int = -1
-                  ) -> McapChunkWriter:
+    def continued(cls, stream: BinaryIO, prefix: bytes, compression_level: int = -1,
+                  background: bool = True) -> McapChunkWriter:
         """A writer that first writes `prefix`, the data section of a file this writer began
         (magic, Header, then whole records, each chunk followed by all its message indexes),
         and then goes on as the writer that wrote it would have: the same schema and channel
         ids, sequence numbers, chunk, attachment and metadata indexes, statistics and data
         CRC. ValueError when the prefix is not such a data section."""
         self = cls.__new__(cls)
-        self._empty(stream, compression_level)
         if not prefix.startswith(MAGIC):
             raise ValueError("the prefix does not start with the MCAP magic")
-        self._index_records(memoryview(prefix))
-        self._write(prefix)
+        self._empty(stream, compression_level, background)
+        try:
+            self._index_records(memoryview(prefix))
+        except ValueError:
+            self._stop()
+            raise
+        self._do(self._write, prefix)
         return self
 
-    def _empty(self, stream: BinaryIO, compression_level: int) -> None:
+    def _empty(self, stream: BinaryIO, compression_level: int, background: bool) -> None:
+        self._behind = WriteBehind() if background else None
+        self._last_chunk = None
         self._stream = stream
         self._offset = 0
         self._data_crc = 0  # CRC-32 of every byte from the magic up to DataEnd (the spec's)
@@ -155,15 +169,32 @@ class McapChunkWriter:
         """The channels registered so far, by id (1, 2, ...)."""
         return tuple(self._channels)
 
+    @property
+    def native_id(self) -> int | None:
+        """The writer thread's id (None without one)."""
+        return None if self._behind is None else self._behind.native_id
+
+    def _do(self, task, *args):
+        """task(*args) now, or in order on the writer thread (returns its future)."""
+        if self._behind is None:
+            task(*args)
+            return None
+        return self._behind.submit(task, *args)
+
+    def _stop(self) -> None:
+        if self._behind is not None:
+            self._behind.close()
+
+    # Everything below that touches the stream, the offset, the CRC or the indexes runs on the
+    # writer thread when there is one.
+
     def _write(self, data: bytes) -> None:
         self._stream.write(data)
         self._offset += len(data)
         self._data_crc = zlib.crc32(data, self._data_crc)
 
     def _write_record(self, record) -> int:
-        builder = RecordBuilder()
-        record.write(builder)
-        data = builder.end()
+        data = _record_bytes(record)
         self._write(data)
         return len(data)
 
@@ -171,7 +202,7 @@ class McapChunkWriter:
         """Register a schema; returns its id (1, 2, ...)."""
         schema = Schema(id=len(self._schemas) + 1, name=name, encoding=encoding, data=data)
         self._schemas.append(schema)
-        self._write_record(schema)
+        self._do(self._write, _record_bytes(schema))
         return schema.id
 
     def add_channel(self, topic: str, message_encoding: str, schema_id: int,
@@ -180,7 +211,7 @@ class McapChunkWriter:
         channel = Channel(id=len(self._channels) + 1, topic=topic, schema_id=schema_id,
                           message_encoding=message_encoding, metadata=dict(metadata or {}))
         self._channels.append(channel)
-        self._write_record(channel)
+        self._do(self._write, _record_bytes(channel))
         return channel.id
 
     def reserve_sequence(self, channel_id: int, count: int) -> int:
@@ -190,26 +221,39 @@ class McapChunkWriter:
         return first
 
     def add_metadata(self, name: str, metadata: dict[str, str]) -> None:
-        offset = self._offset
-        length = self._write_record(Metadata(name=name, metadata=metadata))
-        self._metadata_indexes.append(MetadataIndex(offset=offset, length=length, name=name))
+        self._do(self._write_metadata, name, _record_bytes(Metadata(name=name,
+                                                                    metadata=metadata)))
+
+    def _write_metadata(self, name: str, data: bytes) -> None:
+        self._metadata_indexes.append(MetadataIndex(offset=self._offset, length=len(data),
+                                                    name=name))
+        self._write(data)
 
     def add_attachment(self, name: str, media_type: str, data: bytes, time_ns: int = 0) -> None:
-        offset = self._offset
         record = Attachment(create_time=time_ns, log_time=time_ns, name=name,
                             media_type=media_type, data=data)
-        length = self._write_record(record)
-        self._attachment_indexes.append(AttachmentIndex(
-            offset=offset, length=length, log_time=time_ns, create_time=time_ns,
-            data_size=len(data), name=name, media_type=media_type,
-        ))
+        index = AttachmentIndex(offset=0, length=0, log_time=time_ns, create_time=time_ns,
+                                data_size=len(data), name=name, media_type=media_type)
+        self._do(self._write_attachment, index, _record_bytes(record))
+
+    def _write_attachment(self, index: AttachmentIndex, data: bytes) -> None:
+        index.offset, index.length = self._offset, len(data)
+        self._attachment_indexes.append(index)
+        self._write(data)
 
     def write_chunk(self, chunk: ChunkBuilder) -> None:
         """Compress `chunk` and write it with its message indexes (nothing if it is empty),
-        then release its buffers."""
+        then release its buffers. With a writer thread, the records are put in order here and
+        the rest is done there; at most one chunk waits for it (a second waits here)."""
         if chunk.start_time is None:
             chunk.release()
             return
+        indexes = chunk.message_indexes()  # the records are made on the writer thread
+        if self._behind is not None and self._last_chunk is not None:
+            self._behind.wait(self._last_chunk)  # two chunks' buffers at most
+        self._last_chunk = self._do(self._write_chunk, chunk, indexes)
+
+    def _write_chunk(self, chunk: ChunkBuilder, indexes: dict[int, bytes]) -> None:
         records = chunk.records()
         compressed = self._compressor.compress(records)
         compression = b"zstd"
@@ -225,7 +269,6 @@ class McapChunkWriter:
         chunk_length = self._offset - chunk_offset
         index_offsets = {}
         index_start = offset = self._offset
-        indexes = chunk.message_indexes()
         for channel_id, index in indexes.items():
             index_offsets[channel_id] = offset
             offset += len(index)
@@ -245,14 +288,38 @@ class McapChunkWriter:
         self._end_time = max(self._end_time, chunk.end_time)
         chunk.release()
 
-    def flush(self, fsync: bool = False) -> None:
-        """Hand everything written so far to the operating system; with `fsync`, to the disk."""
+    def flush(self, fsync: bool = False, wait: bool = False) -> None:
+        """Hand everything added so far to the operating system; with `fsync`, to the disk.
+        With a writer thread: once it has written it, or before returning with `wait`."""
+        done = self._do(self._flush, fsync)
+        if wait and self._behind is not None:
+            self._behind.wait(done)
+
+    def wait(self) -> None:
+        """Block until the writer thread has done everything handed to it so far; raise what
+        failed there, if anything. Returns at once without a writer thread."""
+        if self._behind is not None:
+            self._behind.wait()
+
+    def _flush(self, fsync: bool) -> None:
         self._stream.flush()
         if fsync:
             os.fsync(self._stream.fileno())
 
     def finish(self) -> None:
-        """Write the summary and footer, flush and close the stream."""
+        """Write the summary and footer, flush and close the stream; with a writer thread,
+        wait for it, end it and raise what failed on it, if anything (the stream is closed
+        either way)."""
+        try:
+            self._do(self._finish)
+        finally:
+            try:
+                self._stop()
+            finally:
+                if not self._stream.closed:
+                    self._stream.close()
+
+    def _finish(self) -> None:
         self._write_record(DataEnd(data_section_crc=self._data_crc))
         summary_start = self._offset
         builder = RecordBuilder()
@@ -293,3 +360,10 @@ class McapChunkWriter:
         self._stream.flush()
         self._stream.close()
         self.pool = BufferPool()  # the chunks' MBs need not outlive the file
+
+
+def _record_bytes(record) -> bytes:
+    """A record of `mcap.records` as bytes: opcode, length and body."""
+    builder = RecordBuilder()
+    record.write(builder)
+    return builder.end()

@@ -120,13 +120,14 @@ def message_indexes(records: bytes) -> bytes:
 
 def open_continued(source: Path, output: Path | None, prefix: bytes, *, periods: int,
                    note: Mapping[str, str] | None, geometry: ExcavatorGeometry | None,
-                   sample_rate_hz: float | None, overwrite: bool = False) -> RunLog:
+                   sample_rate_hz: float | None, overwrite: bool = False,
+                   background: bool = False) -> RunLog:
     """The RunLog that continues `prefix` (continuation_prefix of `source`) after period
     `periods`: at `output` (a new file; an existing one only with `overwrite`), or, with
     output None or the source itself, in place (module docstring). OSError (FileExistsError)
-    when the file cannot be made; nothing is left behind then."""
+    when the file cannot be made; nothing is left behind then. background: as RunLog's."""
     settings = {"periods": periods, "note": note, "geometry": geometry,
-                "sample_rate_hz": sample_rate_hz}
+                "sample_rate_hz": sample_rate_hz, "background": background}
     if output is not None and not _same_file(source, output):
         try:
             stream = open(output, "wb" if overwrite else "xb")

@@ -1,8 +1,14 @@
 """The MCAP run log of a campaign: one file per run, written period by period.
 
-Every period goes into the file as one chunk, written and flushed to the operating system
-before `log_period` returns, so a run that is killed leaves every finished period readable
-(`orchestrator.runlog.reader.read_run`). Log time is campaign time: ns since the start of
+Every period goes into the file as one chunk, flushed to the operating system as the run
+goes, so a run that is killed leaves its finished periods readable
+(`orchestrator.runlog.reader.read_run`): before `log_period` returns, or, with `background`,
+on the log's own thread (`orchestrator.runlog.write_behind`) while the run plans its next
+period, and surely when `wait_written` or the next `log_period` or `close` returns. The
+campaign logs in the background and waits for the log before the plant runs again
+(`orchestrator.campaign.loop`): compression and writing (about 1.5 ms a paper period) overlap
+the planning on a second core, and a crash in a plant still finds every finished period on
+file. Log time is campaign time: ns since the start of
 period 1 (t0 of a period + the plant's sample time).
 
 Channels (schemas in `orchestrator.runlog.schemas`, frames in `orchestrator.runlog.scene`):
@@ -97,7 +103,9 @@ class RunLog:
     transform_rate_hz: rate of /tf (decimated from the samples). sample_rate_hz: rate of the
     high-rate sample channels (None: every sample; see samples.decimated). fsync: also force
     each period to the disk (survives a power loss, not only a killed process; costs a disk
-    sync per period).
+    sync per period; log_period then returns once its period is on the disk). background:
+    compress and write on the log's own thread (module docstring); False: every period is
+    written and flushed before log_period returns.
     Use as a context manager: an exception inside closes the log with termination "error";
     leaving the block normally closes it with "periods" unless `close` was called.
     """
@@ -108,7 +116,8 @@ class RunLog:
                  transform_rate_hz: float = 25.0, sample_rate_hz: float | None = None,
                  overrides: Sequence[str] = (), fsync: bool = False,
                  overwrite: bool = False,
-                 derived: Mapping[str, Mapping[str, str]] | None = None) -> None:
+                 derived: Mapping[str, Mapping[str, str]] | None = None,
+                 background: bool = False) -> None:
         if not (isinstance(target_mass_kg, int | float) and math.isfinite(target_mass_kg)):
             raise ValueError(f"target_mass_kg must be a finite number, got {target_mass_kg!r}")
         if not transform_rate_hz > 0.0:
@@ -126,14 +135,14 @@ class RunLog:
         self._setup(path, geometry, transform_rate_hz, sample_rate_hz, fsync)
         library = f"excosim {package_versions()['excosim']}"
         lock_for_writing(stream)
-        self._writer = McapChunkWriter(stream, library=library)
+        self._writer = McapChunkWriter(stream, library=library, background=background)
         write_run_description(
             self._writer, scenario_json=scenario_json, scenario_text=scenario_text,
             scenario_name=scenario_name, fmus=fmu_files, plant_kind=plant_kind,
             target_mass_kg=target_mass_kg, geometry=geometry, overrides=list(overrides),
             derived=derived,
         )
-        self._writer.flush(fsync)
+        self._writer.flush(fsync, wait=fsync)
 
     def _setup(self, path: str | Path, geometry: ExcavatorGeometry | None,
                transform_rate_hz: float, sample_rate_hz: float | None, fsync: bool) -> None:
@@ -151,19 +160,19 @@ class RunLog:
     def continued(cls, stream: BinaryIO, prefix: bytes, *, path: str | Path, periods: int,
                   note: Mapping[str, str] | None, geometry: ExcavatorGeometry | None = None,
                   transform_rate_hz: float = 25.0, sample_rate_hz: float | None = None,
-                  fsync: bool = False) -> RunLog:
+                  fsync: bool = False, background: bool = False) -> RunLog:
         """A run log that goes on from `prefix`, the first `periods` periods of a log this class
         wrote (its data section up to the end of period `periods`'s chunk and message indexes:
         orchestrator.runlog.resume), written to `stream` (closed at close()) and flushed with
         the metadata record `excosim.resumed` (`note`; None: none) after it. The next
         log_period is period periods + 1, on the same channels, as the run that wrote the
-        prefix would have written it. geometry, transform_rate_hz, sample_rate_hz, fsync: as
-        the run's own (__init__).
+        prefix would have written it. geometry, transform_rate_hz, sample_rate_hz, fsync,
+        background: as the run's own (__init__).
         ValueError when the prefix is not such a data section."""
         self = cls.__new__(cls)
         self._setup(path, geometry, transform_rate_hz, sample_rate_hz, fsync)
         lock_for_writing(stream)
-        self._writer = McapChunkWriter.continued(stream, prefix)
+        self._writer = McapChunkWriter.continued(stream, prefix, background=background)
         for schema in self._writer.schemas:
             self._schemas[schema.name] = schema.id
         for channel in self._writer.channels:
@@ -171,7 +180,8 @@ class RunLog:
         self._periods = periods
         if note is not None:
             self._writer.add_metadata("excosim.resumed", dict(note))
-        self._writer.flush(True)  # the copy is on the disk before it may replace the original
+        # The copy is on the disk before it may replace the original.
+        self._writer.flush(True, wait=True)
         return self
 
     # -- channels ---------------------------------------------------------------------------
@@ -207,11 +217,11 @@ class RunLog:
 
     def log_period(self, record: Mapping, measurement: PeriodMeasurement, t0_s: float,
                    resume_state: Mapping | None = None) -> None:
-        """Write one period and flush it: `record` (any JSON-able dict; numpy values become
-        lists) on /period, the measurement's samples at log time t0_s + t_s (s), the pile
-        profile and the 3D scene; `resume_state` (JSON-able, schemas.RESUME_STATE_SCHEMA) on
-        /resume, after the record in the same chunk. t0_s: campaign time (s) at the period's
-        start, >= 0."""
+        """Write one period and flush it (when: see the module docstring): `record` (any
+        JSON-able dict; numpy values become lists) on /period, the measurement's samples at log
+        time t0_s + t_s (s), the pile profile and the 3D scene; `resume_state` (JSON-able,
+        schemas.RESUME_STATE_SCHEMA) on /resume, after the record in the same chunk. t0_s:
+        campaign time (s) at the period's start, >= 0."""
         if self._closed:
             raise ValueError(f"run log {self.path} is closed")
         period = self._periods + 1
@@ -241,7 +251,7 @@ class RunLog:
             chunk.add_message(channel, self._writer.reserve_sequence(channel, 1), end_ns,
                               resume_json)
         self._writer.write_chunk(chunk)
-        self._writer.flush(self._fsync)
+        self._writer.flush(self._fsync, wait=self._fsync)
         self._periods = period
 
     def log_unfinished(self, measurement: PeriodMeasurement, t0_s: float) -> None:
@@ -253,7 +263,7 @@ class RunLog:
         chunk = ChunkBuilder(self._writer.pool)
         self._add_samples(chunk, decimated(checked(measurement), self._sample_rate_hz), t0_s)
         self._writer.write_chunk(chunk)
-        self._writer.flush(self._fsync)
+        self._writer.flush(self._fsync, wait=self._fsync)
 
     def _add_samples(self, chunk: ChunkBuilder, period_data, t0_s: float):
         """The sample channels, /display and the arm of a period into `chunk`; returns the
@@ -303,7 +313,7 @@ class RunLog:
         chunk.add_message(pile, self._writer.reserve_sequence(pile, 1), time_ns,
                           scene.pile_scene(time_ns, grid, profile, None, self._geometry))
         self._writer.write_chunk(chunk)
-        self._writer.flush(self._fsync)
+        self._writer.flush(self._fsync, wait=self._fsync)
 
     def _add_arm(self, chunk: ChunkBuilder, joints: np.ndarray, log_ns: np.ndarray,
                  start_ns: int) -> None:
@@ -316,6 +326,12 @@ class RunLog:
         groups = scene.encode_frame_transforms(scene.link_transforms(self._geometry, joints),
                                                log_ns)
         chunk.add_grouped(channel, first, log_ns, groups)
+
+    def wait_written(self) -> None:
+        """Block until everything logged so far is in the file (flushed to the operating
+        system); raise what failed writing it, if anything. Returns at once without
+        `background`."""
+        self._writer.wait()
 
     # -- closing ----------------------------------------------------------------------------
 
