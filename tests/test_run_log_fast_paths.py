@@ -18,7 +18,11 @@ from orchestrator.runlog import native
 from orchestrator.runlog.chunk import BufferPool, ChunkBuilder, DoubleBatch
 from orchestrator.runlog.metadata import _PACKAGES, package_versions
 from orchestrator.runlog.samples import CheckedPeriod, double_tag, sample_channels
-from orchestrator.runlog.scene import encode_frame_transforms, link_transforms
+from orchestrator.runlog.scene import (
+    encode_frame_transforms,
+    link_transforms,
+    transform_records,
+)
 from plant_models import presets
 
 PREFIXES = st.sampled_from([double_tag(1), double_tag(7), double_tag(16), double_tag(33),
@@ -119,6 +123,30 @@ def test_frame_transforms_equal_the_reference_encoding(seed, n, start_ns):
     for (index, payload), (ref_index, ref_payload) in zip(fast, reference, strict=True):
         assert np.array_equal(index, ref_index)
         assert payload.tobytes() == ref_payload.tobytes()
+
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 60),
+       st.sampled_from([0, 10**9 - 5 * 10**6, 127 * 10**9, 10**13]), st.booleans())
+def test_transform_records_in_c_equal_the_numpy_encoding(seed, n, start_ns, ties):
+    """/tf records from rows.c (scene.transform_records, written when the records are made,
+    among other messages) against encode_frame_transforms's payloads through add_grouped."""
+    rng = np.random.default_rng(seed)
+    times = (start_ns + np.sort(rng.integers(0, 3 * 10**9, n))).astype(np.uint64)
+    if ties:
+        times[n // 2:] = times[n // 2]  # equal times keep sample order
+    transforms = link_transforms(presets.get("paper"), rng.uniform(-3, 3, (n, 3)))
+    numpy_chunk, c_chunk = ChunkBuilder(), ChunkBuilder()
+    for chunk in (numpy_chunk, c_chunk):
+        chunk.add_message(1, 0, int(times[0]), b"before")
+    numpy_chunk.add_grouped(4, 17, times, encode_frame_transforms(transforms, times))
+    for index, width, rows in transform_records(transforms, times, 4, 17):
+        c_chunk.add_rows(4, times[index], width, rows)
+    for chunk in (numpy_chunk, c_chunk):
+        chunk.add_message(2, 0, int(times[-1]), b"after")
+    assert c_chunk.message_indexes() == numpy_chunk.message_indexes()
+    assert bytes(c_chunk.records()) == bytes(numpy_chunk.records())
 
 
 SIGNALS = ["boom.x", "boom.v", "boom.p_A", "boom.u", "stick.F", "bucket.x", "pile.bucket_mass",

@@ -188,10 +188,10 @@ class ChunkBuilder:
 
     def __init__(self, pool: BufferPool | None = None) -> None:
         # Each group: (rows' log times (n,), row width w (bytes), data (n * w bytes: the rows,
-        # or _SampleRows that write them), [(channel id, message offsets inside a row (n,))],
-        # whether the times never go back). A row holds one message, or one message per
-        # channel of a batch of samples taken at the same time.
-        self._groups: list[tuple[np.ndarray, int, bytes | np.ndarray | _SampleRows,
+        # or an object that writes them: _SampleRows, add_rows), [(channel id, message
+        # offsets inside a row (n,))], whether the times never go back). A row holds one
+        # message, or one message per channel of a batch of samples taken at the same time.
+        self._groups: list[tuple[np.ndarray, int, bytes | np.ndarray | object,
                                  list[tuple[int, np.ndarray]], bool]] = []
         self.size = 0
         self.start_time: int | None = None
@@ -258,6 +258,14 @@ class ChunkBuilder:
         record = header + data
         self._add_group(np.array([log_time_ns], dtype=np.uint64), len(record), record,
                         [(channel_id, np.zeros(1, dtype=np.int64))])
+
+    def add_rows(self, channel_id: int, log_time_ns: np.ndarray, width: int, rows) -> None:
+        """Message records of one channel at times (n,) ns, each `width` bytes, that
+        `rows.write(records, at)` writes (record i at byte at[i] of the records, a uint8 array)
+        when the chunk's records are made, maybe on another thread: `rows` holds its own
+        data. Used for /tf (scene.transform_records)."""
+        times = np.asarray(log_time_ns, dtype=np.uint64)
+        self._add_group(times, width, rows, [(channel_id, np.zeros(len(times), dtype=np.int64))])
 
     def add_grouped(self, channel_id: int, first_sequence: int, log_time_ns: np.ndarray,
                     groups) -> None:
@@ -329,7 +337,7 @@ class ChunkBuilder:
             for g_times, width, data, _, _ in self._groups:
                 at = placed[base:base + len(g_times)]
                 base += len(g_times)
-                if isinstance(data, _SampleRows):
+                if hasattr(data, "write"):  # _SampleRows, or rows of add_rows
                     data.write(records, at)
                 elif len(at) == 1:
                     records[at[0]:at[0] + width] = np.frombuffer(data, dtype=np.uint8)

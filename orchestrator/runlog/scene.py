@@ -34,6 +34,7 @@ from foxglove.messages import (
     Vector3,
 )
 
+from orchestrator.runlog import native
 from orchestrator.runlog.wire import doubles, field, rows, strided, varint, varint_digits
 from plant_models.geometry import ExcavatorGeometry
 
@@ -136,6 +137,64 @@ def encode_frame_transforms(transforms, log_time_ns: np.ndarray):
             strided(block, doubles_at + 29, "<f8", (n, 4), (width, 9))[:] = pose[begin:end, i, 3:]
         groups.append((order[begin:end], block))
     return groups
+
+
+def transform_records(transforms, log_time_ns: np.ndarray, channel_id: int,
+                      first_sequence: int) -> list[tuple[np.ndarray, int, TransformRows]] | None:
+    """The /tf message records of `encode_frame_transforms`, written by rows.c when the
+    chunk's records are made (ChunkBuilder.add_rows): [(sample indices, record size in bytes,
+    their TransformRows)], one entry per record size; None without the C library."""
+    if native.library() is None:
+        return None
+    ns = np.asarray(log_time_ns, dtype=np.uint64)
+    billion = np.uint64(1_000_000_000)
+    stamp = 2 + _varint_sizes(ns // billion) + _varint_sizes(ns % billion)  # Timestamp bytes
+    names = [_string_field(2, parent) + _string_field(3, child)
+             for parent, child, _, _ in transforms]
+    name_at = np.cumsum([0, *(len(n) for n in names)], dtype=np.int64)
+    poses = np.stack([np.concatenate([translation, rotation], axis=1)
+                      for _, _, translation, rotation in transforms], axis=1)  # (n, T, 7)
+    sequences = (first_sequence + np.arange(len(ns))).astype(np.uint32)
+    out = []
+    for size in np.unique(stamp).tolist():
+        index = np.flatnonzero(stamp == size)
+        width = _MESSAGE_HEADER_SIZE
+        for name in names:
+            transform = 1 + len(varint(size)) + size + len(name) + _POSE_FIELDS_SIZE
+            width += 1 + len(varint(transform)) + transform
+        out.append((index, width, TransformRows(
+            channel_id, sequences[index], ns[index], b"".join(names), name_at, poses[index])))
+    return out
+
+
+class TransformRows:
+    """foxglove.FrameTransforms records of one size, kept as their values until written:
+    `write(records, at)` puts record i at byte at[i] (rows.c: fill_transforms)."""
+
+    def __init__(self, channel_id: int, sequences: np.ndarray, times_ns: np.ndarray,
+                 names: bytes, name_at: np.ndarray, poses: np.ndarray) -> None:
+        self.channel_id, self.sequences, self.times = channel_id, sequences, times_ns
+        self.names = np.frombuffer(names, dtype=np.uint8)
+        self.name_at = name_at
+        self.poses = np.ascontiguousarray(poses, dtype=np.float64)  # (n, T, 7)
+
+    def write(self, records: np.ndarray, at: np.ndarray) -> None:
+        at, p = np.ascontiguousarray(at, dtype=np.int64), native.pointer
+        native.library().fill_transforms(
+            p(records), p(at), len(at), self.channel_id, p(self.sequences), p(self.times),
+            len(self.name_at) - 1, p(self.names), p(self.name_at), p(self.poses))
+
+
+def _varint_sizes(values: np.ndarray) -> np.ndarray:
+    """Bytes of the protobuf varint of each non-negative integer (n,)."""
+    sizes = np.ones(len(values), dtype=np.int64)
+    for bits in range(7, 64, 7):
+        sizes += values >= np.uint64(1 << bits)
+    return sizes
+
+
+_MESSAGE_HEADER_SIZE = 31  # MCAP message record: opcode, length, channel, sequence, 2 times
+_POSE_FIELDS_SIZE = 2 + 3 * 9 + 2 + 4 * 9  # translation (Vector3) and rotation (Quaternion)
 
 
 @lru_cache(maxsize=32)  # the same frames every period and a few timestamp sizes

@@ -323,9 +323,14 @@ class RunLog:
         chunk.add_message(arm, self._writer.reserve_sequence(arm, 1), start_ns, data)
         channel = self._foxglove_channel("/tf", FrameTransforms)
         first = self._writer.reserve_sequence(channel, len(log_ns))
-        groups = scene.encode_frame_transforms(scene.link_transforms(self._geometry, joints),
-                                               log_ns)
-        chunk.add_grouped(channel, first, log_ns, groups)
+        transforms = scene.link_transforms(self._geometry, joints)
+        records = scene.transform_records(transforms, log_ns, channel, first)
+        if records is None:  # no C library: encoded here with numpy, to the same bytes
+            chunk.add_grouped(channel, first, log_ns,
+                              scene.encode_frame_transforms(transforms, log_ns))
+            return
+        for index, width, rows in records:
+            chunk.add_rows(channel, log_ns[index], width, rows)
 
     def wait_written(self) -> None:
         """Block until everything logged so far is in the file (flushed to the operating

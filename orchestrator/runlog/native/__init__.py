@@ -35,6 +35,9 @@ def library() -> ctypes.CDLL | None:
     loaded.fill_rows.restype = None
     loaded.place_rows.argtypes = [address, address, size, size, address]
     loaded.place_rows.restype = None
+    loaded.fill_transforms.argtypes = [address, address, size, size, address, address, size,
+                                       address, address, address]
+    loaded.fill_transforms.restype = None
     return loaded
 
 

@@ -44,3 +44,80 @@ EXPORT void place_rows(uint8_t *records, const int64_t *at, long n, long width, 
     for (long i = 0; i < n; i++)
         memcpy(records + at[i], rows + i * width, (size_t)width);
 }
+
+static size_t put_varint(uint8_t *out, uint64_t value)
+{
+    size_t k = 0;
+    while (value >= 0x80) {
+        out[k++] = (uint8_t)(value | 0x80);
+        value >>= 7;
+    }
+    out[k++] = (uint8_t)value;
+    return k;
+}
+
+static size_t varint_size(uint64_t value)
+{
+    size_t k = 1;
+    while (value >= 0x80) {
+        value >>= 7;
+        k++;
+    }
+    return k;
+}
+
+/* foxglove.FrameTransforms messages, one per row, as orchestrator/runlog/scene.py's
+   encode_frame_transforms encodes them: row i at records + at[i] is an MCAP message record
+   (channel, sequence[i], times[i] as log and publish time) whose payload is `transforms`
+   FrameTransform fields, each: the timestamp times[i] (sec and nsec, both written even when
+   0), the frame ids (the constant bytes names[name_at[t]] up to names[name_at[t + 1]]),
+   translation x, y, z and rotation x, y, z, w from poses[(i * transforms + t) * 7 ...]. The
+   caller places the rows by their sizes (scene.transform_sizes). */
+EXPORT void fill_transforms(uint8_t *records, const int64_t *at, long n, long channel,
+                            const uint32_t *sequence, const uint64_t *times, long transforms,
+                            const uint8_t *names, const int64_t *name_at, const double *poses)
+{
+    for (long i = 0; i < n; i++) {
+        uint8_t *row = records + at[i], *p = row + 31, stamp[24];
+        uint64_t ns = times[i];
+        size_t s = 0;
+        stamp[s++] = 0x08;
+        s += put_varint(stamp + s, ns / 1000000000u);
+        stamp[s++] = 0x10;
+        s += put_varint(stamp + s, ns % 1000000000u);
+        for (long t = 0; t < transforms; t++) {
+            const double *pose = poses + (i * transforms + t) * 7;
+            size_t named = (size_t)(name_at[t + 1] - name_at[t]);
+            *p++ = 0x0a;  /* FrameTransforms.transforms */
+            p += put_varint(p, 1 + varint_size(s) + s + named + 2 + 27 + 2 + 36);
+            *p++ = 0x0a;  /* FrameTransform.timestamp */
+            p += put_varint(p, s);
+            memcpy(p, stamp, s);
+            p += s;
+            memcpy(p, names + name_at[t], named);
+            p += named;
+            *p++ = 0x22;  /* translation: Vector3 x, y, z */
+            *p++ = 27;
+            for (int k = 0; k < 3; k++) {
+                *p++ = (uint8_t)((k + 1) << 3 | 1);
+                memcpy(p, &pose[k], 8);
+                p += 8;
+            }
+            *p++ = 0x2a;  /* rotation: Quaternion x, y, z, w */
+            *p++ = 36;
+            for (int k = 0; k < 4; k++) {
+                *p++ = (uint8_t)((k + 1) << 3 | 1);
+                memcpy(p, &pose[3 + k], 8);
+                p += 8;
+            }
+        }
+        uint64_t length = (uint64_t)(p - row) - 9;
+        uint16_t id = (uint16_t)channel;
+        row[0] = 0x05;  /* MCAP Message */
+        memcpy(row + 1, &length, 8);
+        memcpy(row + 9, &id, 2);
+        memcpy(row + 11, &sequence[i], 4);
+        memcpy(row + 15, &ns, 8);
+        memcpy(row + 23, &ns, 8);
+    }
+}
