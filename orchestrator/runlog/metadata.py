@@ -112,6 +112,19 @@ def fmu_content(data: bytes) -> str:
         return ""
 
 
+_CONTENTS: dict[str, str] = {}  # FMU file sha256 -> fmu_content: one FMU file often fills
+# several roles, and a sweep's campaigns use the same files over and over
+
+
+def _content_of(digest: str, data: bytes) -> str:
+    """fmu_content(data), once per distinct file (`digest`: the sha256 of `data`)."""
+    if digest not in _CONTENTS:
+        if len(_CONTENTS) >= 256:
+            _CONTENTS.clear()
+        _CONTENTS[digest] = fmu_content(data)
+    return _CONTENTS[digest]
+
+
 def plant_roles(scenario: Mapping, fmus: Mapping[str, tuple[str, bytes]],
                 hashes: Mapping[str, str],
                 derived: Mapping[str, Mapping[str, str]] | None = None,
@@ -160,13 +173,10 @@ def write_run_description(writer: McapChunkWriter, *, scenario_json: str, scenar
     # FMUs' identity is their content (excosim.fmu_content), which review and replay compare.
     hashes, contents, names, attached = {}, {}, {}, {}
     to_attach: list[tuple[str, bytes]] = []
-    content_by_digest: dict[str, str] = {}  # one FMU file often fills several roles
     for name, (file_name, data) in fmus.items():
         digest = hashlib.sha256(data).hexdigest()
         hashes[name] = digest
-        if digest not in content_by_digest:
-            content_by_digest[digest] = fmu_content(data)
-        contents[name] = content_by_digest[digest]
+        contents[name] = _content_of(digest, data)
         if digest not in attached:
             attachment = f"fmus/{file_name}"
             if attachment in attached.values():

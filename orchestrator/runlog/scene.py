@@ -185,12 +185,12 @@ class TransformRows:
             len(self.name_at) - 1, p(self.names), p(self.name_at), p(self.poses))
 
 
+_VARINT_STEPS = np.array([1 << bits for bits in range(7, 64, 7)], dtype=np.uint64)
+
+
 def _varint_sizes(values: np.ndarray) -> np.ndarray:
-    """Bytes of the protobuf varint of each non-negative integer (n,)."""
-    sizes = np.ones(len(values), dtype=np.int64)
-    for bits in range(7, 64, 7):
-        sizes += values >= np.uint64(1 << bits)
-    return sizes
+    """Bytes of the protobuf varint of each non-negative integer (n,) uint64."""
+    return 1 + np.searchsorted(_VARINT_STEPS, values, side="right")
 
 
 _MESSAGE_HEADER_SIZE = 31  # MCAP message record: opcode, length, channel, sequence, 2 times
