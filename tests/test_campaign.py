@@ -335,3 +335,51 @@ def test_an_unknown_strategy_or_a_negative_gain_is_refused(paper):
     for bad in ({"strategy": "neural"}, {"strategy": "proportional", "gain_m_per_kg": -0.01}):
         with pytest.raises(ScenarioError, match="strategy|gain_m_per_kg"):
             _strategy(paper, **bad)
+
+
+_CRASHING_CAMPAIGN = """
+import os, signal, sys, time
+sys.path.insert(0, "tests")
+from kinematic_plant import KinematicPlant
+from orchestrator.campaign import run_campaign
+from orchestrator.runlog import mcap_records
+from orchestrator.scenario import load_scenario
+
+written = mcap_records.McapChunkWriter._write_chunk
+
+
+def slow(self, *args):  # a slow disk: the log's thread is still on period 2 when 3 starts
+    time.sleep(0.3)
+    written(self, *args)
+
+
+mcap_records.McapChunkWriter._write_chunk = slow
+
+
+class Crashing(KinematicPlant):
+    def run_period(self, reference):
+        if len(self.references) == 2:  # period 3: as an FMU that takes the process down
+            os.kill(os.getpid(), signal.SIGKILL)
+        return super().run_period(reference)
+
+
+scenario = load_scenario(sys.argv[1])
+run_campaign(scenario, plant=Crashing(scenario.geometry()), log_path=sys.argv[2])
+"""
+
+
+def test_a_plant_that_kills_the_run_finds_every_finished_period_on_file(tmp_path):
+    """The campaign's log compresses and writes on a thread of its own, and the campaign waits
+    for it before the plant runs again: a crash in the plant loses no finished period, however
+    slow the disk."""
+    import signal
+    import subprocess
+    import sys
+
+    log = tmp_path / "crashed.mcap"
+    done = subprocess.run([sys.executable, "-c", _CRASHING_CAMPAIGN, str(PAPER), str(log)],
+                          cwd=PAPER.parents[1], timeout=120, check=False)
+    assert done.returncode == -signal.SIGKILL
+    run = read_run(log)
+    assert [record["k"] for record in run.periods] == [1, 2]
+    assert not run.finished
