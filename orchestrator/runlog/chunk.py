@@ -105,17 +105,21 @@ class _SampleRows:
         self.first = np.array([batch.first_sequence for batch in batches], dtype=np.uint32)
         self.times = np.array(times, dtype=np.uint64)
 
-    def write(self, records: np.ndarray, at: np.ndarray) -> None:
-        layout, m = self.layout, len(self.times)
+    def job(self, records: np.ndarray, at: np.ndarray, keep: list) -> list[int]:
+        """The rows.c job that writes these rows (`keep`: where arrays it points to are kept
+        alive until it has run)."""
+        layout, p = self.layout, native.pointer
         at = np.ascontiguousarray(at, dtype=np.int64)
-        library = native.library()
-        if library is not None:
-            p = native.pointer
-            library.fill_rows(
-                p(records), p(at), m, layout.width, p(layout.template), p(self.times),
-                len(self.first), p(layout.sequence_at), p(self.first), p(layout.time_at),
-                len(self.column), p(layout.double_at), p(self.column), p(self.values))
-            return
+        keep.append(at)
+        return native.job(
+            native.FILL_ROWS, p(records), p(at), len(self.times), layout.width,
+            p(layout.template), p(self.times), len(self.first), p(layout.sequence_at),
+            p(self.first), p(layout.time_at), len(self.column), p(layout.double_at),
+            p(self.column), p(self.values))
+
+    def write(self, records: np.ndarray, at: np.ndarray) -> None:
+        """The same bytes as `job`, with numpy (where there is no C library)."""
+        layout, m = self.layout, len(self.times)
         block = np.empty((m, layout.width), dtype=np.uint8)
         block[:] = layout.template  # constant bytes (record headers, protobuf tags)
         counter = np.arange(m, dtype=np.uint32)
@@ -188,7 +192,7 @@ class ChunkBuilder:
 
     def __init__(self, pool: BufferPool | None = None) -> None:
         # Each group: (rows' log times (n,), row width w (bytes), data (n * w bytes: the rows,
-        # or an object that writes them: _SampleRows, add_rows), [(channel id, message
+        # or an object with a rows.c job for them: _SampleRows, add_rows), [(channel id, message
         # offsets inside a row (n,))], whether the times never go back). A row holds one
         # message, or one message per channel of a batch of samples taken at the same time.
         self._groups: list[tuple[np.ndarray, int, bytes | np.ndarray | object,
@@ -260,10 +264,11 @@ class ChunkBuilder:
                         [(channel_id, np.zeros(1, dtype=np.int64))])
 
     def add_rows(self, channel_id: int, log_time_ns: np.ndarray, width: int, rows) -> None:
-        """Message records of one channel at times (n,) ns, each `width` bytes, that
-        `rows.write(records, at)` writes (record i at byte at[i] of the records, a uint8 array)
-        when the chunk's records are made, maybe on another thread: `rows` holds its own
-        data. Used for /tf (scene.transform_records)."""
+        """Message records of one channel at times (n,) ns, each `width` bytes, that the
+        rows.c job `rows.job(records, at, keep)` writes (record i at byte at[i] of the records,
+        a uint8 array) when the chunk's records are made, maybe on another thread: `rows`
+        holds its own data. Only with the C library (orchestrator.runlog.native). Used for /tf
+        (scene.transform_records)."""
         times = np.asarray(log_time_ns, dtype=np.uint64)
         self._add_group(times, width, rows, [(channel_id, np.zeros(len(times), dtype=np.int64))])
 
@@ -328,25 +333,32 @@ class ChunkBuilder:
     def records(self) -> memoryview:
         """The chunk's records, in log-time order (a bytes-like view). Once
         `message_indexes` has been called, this may be called on another thread (nothing is
-        added meanwhile): the sample rows are encoded here, mostly in C with the GIL free."""
+        added meanwhile): the rows are written here, all in one call of rows.c with the GIL
+        free (numpy without the C library)."""
         if not self._groups:
             return memoryview(b"")
         if self._records is None:
             records, placed, _ = self._place()
-            library, base = native.library(), 0
+            in_c, base, jobs, keep = native.library() is not None, 0, [], []
             for g_times, width, data, _, _ in self._groups:
                 at = placed[base:base + len(g_times)]
                 base += len(g_times)
-                if hasattr(data, "write"):  # _SampleRows, or rows of add_rows
+                if in_c and hasattr(data, "job"):  # _SampleRows, or rows of add_rows
+                    jobs.append(data.job(records, at, keep))
+                elif in_c:
+                    rows = np.frombuffer(data, dtype=np.uint8)
+                    keep.append(rows)
+                    jobs.append(native.job(native.PLACE_ROWS, native.pointer(records),
+                                           native.pointer(at), len(at), width,
+                                           native.pointer(rows)))
+                elif hasattr(data, "write"):
                     data.write(records, at)
                 elif len(at) == 1:
                     records[at[0]:at[0] + width] = np.frombuffer(data, dtype=np.uint8)
-                elif library is not None:
-                    rows = np.frombuffer(data, dtype=np.uint8)
-                    library.place_rows(native.pointer(records), native.pointer(at), len(at),
-                                       width, native.pointer(rows))
                 else:
                     _byte_rows(records, width)[at] = np.frombuffer(data, dtype=f"V{width}")
+            if jobs:
+                native.write(jobs)
             self._records = memoryview(records)
         return self._records
 

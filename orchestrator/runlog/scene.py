@@ -168,8 +168,8 @@ def transform_records(transforms, log_time_ns: np.ndarray, channel_id: int,
 
 
 class TransformRows:
-    """foxglove.FrameTransforms records of one size, kept as their values until written:
-    `write(records, at)` puts record i at byte at[i] (rows.c: fill_transforms)."""
+    """foxglove.FrameTransforms records of one size, kept as their values until written by
+    their rows.c job, which puts record i at byte at[i] (fill_transforms)."""
 
     def __init__(self, channel_id: int, sequences: np.ndarray, times_ns: np.ndarray,
                  names: bytes, name_at: np.ndarray, poses: np.ndarray) -> None:
@@ -178,11 +178,14 @@ class TransformRows:
         self.name_at = name_at
         self.poses = np.ascontiguousarray(poses, dtype=np.float64)  # (n, T, 7)
 
-    def write(self, records: np.ndarray, at: np.ndarray) -> None:
+    def job(self, records: np.ndarray, at: np.ndarray, keep: list) -> list[int]:
+        """The rows.c job that writes these records (`keep`: where arrays it points to are
+        kept alive until it has run)."""
         at, p = np.ascontiguousarray(at, dtype=np.int64), native.pointer
-        native.library().fill_transforms(
-            p(records), p(at), len(at), self.channel_id, p(self.sequences), p(self.times),
-            len(self.name_at) - 1, p(self.names), p(self.name_at), p(self.poses))
+        keep.append(at)
+        return native.job(native.FILL_TRANSFORMS, p(records), p(at), len(at), self.channel_id,
+                          p(self.sequences), p(self.times), len(self.name_at) - 1,
+                          p(self.names), p(self.name_at), p(self.poses))
 
 
 _VARINT_STEPS = np.array([1 << bits for bits in range(7, 64, 7)], dtype=np.uint64)

@@ -3,7 +3,8 @@
 `library()` is the built library (gcc, built on first use and cached like the FMUs:
 fmus.shared_library), or None where it cannot be had (no gcc, a big-endian host): the chunk
 builder then fills its rows with numpy, to the same bytes (tests/test_run_log_fast_paths.py).
-`pointer(array)` is what its functions take for an array (an address; argtypes say c_void_p).
+`write(jobs)` runs a table of rows.c jobs (`job(kind, *arguments)` each) in one call;
+`pointer(array)` is the address of an array, as a job's argument.
 """
 
 from __future__ import annotations
@@ -29,18 +30,29 @@ def library() -> ctypes.CDLL | None:
     except BuildError:
         return None
     loaded = ctypes.CDLL(str(path))
-    address, size = ctypes.c_void_p, ctypes.c_long
-    loaded.fill_rows.argtypes = [address, address, size, size, address, address, size, address,
-                                 address, address, size, address, address, address]
-    loaded.fill_rows.restype = None
-    loaded.place_rows.argtypes = [address, address, size, size, address]
-    loaded.place_rows.restype = None
-    loaded.fill_transforms.argtypes = [address, address, size, size, address, address, size,
-                                       address, address, address]
-    loaded.fill_transforms.restype = None
+    loaded.write_records.argtypes = [ctypes.c_void_p, ctypes.c_long]
+    loaded.write_records.restype = ctypes.c_long
     return loaded
 
 
 def pointer(array: np.ndarray) -> int:
     """The address of a C-contiguous array's first element."""
     return array.ctypes.data
+
+
+PLACE_ROWS, FILL_ROWS, FILL_TRANSFORMS = 0, 1, 2  # rows.c's job kinds
+_SLOTS = 16
+
+
+def job(kind: int, *arguments: int) -> list[int]:
+    """One row of a job table: rows.c's kind and its arguments (ints; addresses for arrays)."""
+    return [kind, *arguments, *(0,) * (_SLOTS - 1 - len(arguments))]
+
+
+def write(jobs: list[list[int]]) -> None:
+    """Run rows.c's jobs, in order, in one call with the GIL free. The caller keeps every
+    array a job points to alive meanwhile."""
+    table = np.array(jobs, dtype=np.int64)
+    failed = library().write_records(pointer(table), len(jobs))
+    if failed >= 0:
+        raise ValueError(f"rows.c job {failed} has an unknown kind {jobs[failed][0]}")

@@ -2,7 +2,9 @@
    (orchestrator/runlog/chunk.py, ChunkBuilder.records). numpy wrote each field of every row
    with a call of its own (about 80 a row) into a block, and then copied the block's rows to
    their places; here one pass writes each row where it goes. Called through ctypes, so the
-   GIL is free meanwhile: the log's writer thread fills while the run plans.
+   GIL is free meanwhile: the log's writer thread fills while the run plans. All of a chunk's
+   rows are written in one call (write_records): each time the thread takes the GIL back it
+   may have to wait for the run's thread, which then waits for it in turn.
 
    Byte order: the fields are little-endian; the binding loads this only on little-endian
    hosts. */
@@ -17,7 +19,7 @@
    and the sample's time times[i] (u64, ns) at time_at[c] and time_at[c] + 8 (log and publish
    time), then each double field f, values[column[f] * n + i], at double_at[f]. values is
    (columns, n) float64, C order. */
-EXPORT void fill_rows(uint8_t *records, const int64_t *at, long n, long width,
+static void fill_rows(uint8_t *records, const int64_t *at, long n, long width,
                const uint8_t *row_template, const uint64_t *times,
                long channels, const int64_t *sequence_at, const uint32_t *first,
                const int64_t *time_at,
@@ -39,7 +41,7 @@ EXPORT void fill_rows(uint8_t *records, const int64_t *at, long n, long width,
 }
 
 /* Rows already encoded (n rows of width bytes, back to back) to records + at[i]. */
-EXPORT void place_rows(uint8_t *records, const int64_t *at, long n, long width, const uint8_t *rows)
+static void place_rows(uint8_t *records, const int64_t *at, long n, long width, const uint8_t *rows)
 {
     for (long i = 0; i < n; i++)
         memcpy(records + at[i], rows + i * width, (size_t)width);
@@ -73,7 +75,7 @@ static size_t varint_size(uint64_t value)
    0), the frame ids (the constant bytes names[name_at[t]] up to names[name_at[t + 1]]),
    translation x, y, z and rotation x, y, z, w from poses[(i * transforms + t) * 7 ...]. The
    caller places the rows by their sizes (scene.transform_sizes). */
-EXPORT void fill_transforms(uint8_t *records, const int64_t *at, long n, long channel,
+static void fill_transforms(uint8_t *records, const int64_t *at, long n, long channel,
                             const uint32_t *sequence, const uint64_t *times, long transforms,
                             const uint8_t *names, const int64_t *name_at, const double *poses)
 {
@@ -120,4 +122,35 @@ EXPORT void fill_transforms(uint8_t *records, const int64_t *at, long n, long ch
         memcpy(row + 15, &ns, 8);
         memcpy(row + 23, &ns, 8);
     }
+}
+
+/* Each job: 16 int64, a kind and its arguments (addresses as integers):
+   0: place_rows(records, at, n, width, rows)
+   1: fill_rows(records, at, n, width, row_template, times, channels, sequence_at, first,
+                time_at, doubles, double_at, column, values)
+   2: fill_transforms(records, at, n, channel, sequence, times, transforms, names, name_at,
+                      poses)
+   Returns the index of the first job of an unknown kind, or -1 when all were done. */
+#define P(k) ((void *)(intptr_t)job[k])
+EXPORT long write_records(const int64_t *jobs, long n_jobs)
+{
+    for (long j = 0; j < n_jobs; j++) {
+        const int64_t *job = jobs + 16 * j;
+        switch (job[0]) {
+        case 0:
+            place_rows(P(1), P(2), (long)job[3], (long)job[4], P(5));
+            break;
+        case 1:
+            fill_rows(P(1), P(2), (long)job[3], (long)job[4], P(5), P(6), (long)job[7], P(8),
+                      P(9), P(10), (long)job[11], P(12), P(13), P(14));
+            break;
+        case 2:
+            fill_transforms(P(1), P(2), (long)job[3], (long)job[4], P(5), P(6), (long)job[7],
+                            P(8), P(9), P(10));
+            break;
+        default:
+            return j;
+        }
+    }
+    return -1;
 }
