@@ -118,6 +118,7 @@ def run_instrumented(scenario, folder: Path):
             timed(run_log.RunLog, name, "logging", seconds)
     if write_behind is not None:
         timed(write_behind.WriteBehind, "_run", "log writer thread", seconds)
+        timed(run_log.RunLog, "wait_written", "log wait", seconds)  # also in "logging"
     timed(campaign, "build_plant", "plant setup", seconds)
     timed(campaign, "sample_reference", "sampling", seconds)
     timed(campaign, "resume_record", "resume states", seconds)
@@ -225,7 +226,7 @@ def measure(ecos: bool) -> dict:
     per_fmu, steps = replay_fast(scenario, series)
     figures = {key: seconds[key] for key in ("total", "plant", "plant setup", "planner",
                                              "sampling", "logging", "resume states",
-                                             "log writer thread")}
+                                             "log writer thread", "log wait")}
     figures["fmus"] = sum(per_fmu.values())
     figures["master"] = seconds["plant"] - figures["fmus"]
     figures["other"] = seconds["total"] - sum(seconds[k] for k in (
@@ -264,8 +265,9 @@ def report(figures: dict) -> None:
     share = figures["logging"] / total
     print(f"logging {100 * share:.1f} % of wall time (target <= {100 * LOG_SHARE_TARGET:g} %)")
     if figures.get("log writer thread"):
-        print(f"  the log's writer thread, on CPU {WRITER_CPU} beside the run: "
-              f"{figures['log writer thread']:.3f} s busy (compression, CRCs, writes)")
+        print(f"  of which waiting for the log's writer thread {figures['log wait']:.3f} s; "
+              f"the thread, on CPU {WRITER_CPU} beside the run: "
+              f"{figures['log writer thread']:.3f} s busy (rows, compression, CRCs, writes)")
     ours, fmus_only, master = per_step_us(figures)
     print("per communication step, all four FMUs (3 cylinders, pile):")
     print(f"  excosim plant (master + FMUs)  {ours:7.1f} us")
@@ -323,6 +325,12 @@ def side_by_side(revision: str, pairs: int) -> None:
         logging = np.median([f["logging"] / f["total"] for f in figures])
         print(f"  {name:10s} {rtf:7.1f} {plant:9.1f} {fmus_only:8.1f} {master:10.1f} "
               f"{100 * logging:7.1f}% {figures[0]['step_s'] * 1e6 / fmus_only:10.0f}")
+    # Runs next to each other share the machine's state of the moment (its speed drifts by
+    # 10 % within minutes here): the ratio within each pair is steadier than either median.
+    ratios = sorted(new["total"] / old["total"]
+                    for new, old in zip(runs["this tree"], runs[commit], strict=True))
+    print(f"  wall time of this tree / {commit}'s, pair by pair: median {np.median(ratios):.3f} "
+          f"(from {ratios[0]:.3f} to {ratios[-1]:.3f})")
 
 
 def main() -> None:

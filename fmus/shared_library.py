@@ -1,5 +1,6 @@
 """Compile a plain shared library (not an FMU) from C sources with the FMU builder's gcc and flags,
-cached by content: for the orchestrator's own C (orchestrator.plants.native).
+cached by content: for the orchestrator's own C (orchestrator.plants.native,
+orchestrator.runlog.native).
 
 The build key hashes the sources, the flags, the compiler's version and this module; the library
 goes to <fmu_dir()>/native/<name>-<key12>.so, compiled in the source folder on relative names
