@@ -358,28 +358,37 @@ mcap_records.McapChunkWriter._write_chunk = slow
 
 class Crashing(KinematicPlant):
     def run_period(self, reference):
-        if len(self.references) == 2:  # period 3: as an FMU that takes the process down
-            os.kill(os.getpid(), signal.SIGKILL)
+        if len(self.references) == 2 and sys.argv[3] == "run":  # period 3
+            os.kill(os.getpid(), signal.SIGKILL)  # as an FMU that takes the process down
         return super().run_period(reference)
+
+    def close(self):  # as an FMU whose termination takes the process down
+        os.kill(os.getpid(), signal.SIGKILL)
 
 
 scenario = load_scenario(sys.argv[1])
+if sys.argv[3] == "close":
+    from orchestrator.scenario import scenario_from_dict
+    scenario = scenario_from_dict({**scenario.to_dict(), "periods": 3})
 run_campaign(scenario, plant=Crashing(scenario.geometry()), log_path=sys.argv[2])
 """
 
 
-def test_a_plant_that_kills_the_run_finds_every_finished_period_on_file(tmp_path):
+@pytest.mark.parametrize(("crash", "periods"), [("run", [1, 2]), ("close", [1, 2, 3])])
+def test_a_plant_that_kills_the_run_finds_every_finished_period_on_file(tmp_path, crash,
+                                                                        periods):
     """The campaign's log compresses and writes on a thread of its own, and the campaign waits
-    for it before the plant runs again: a crash in the plant loses no finished period, however
-    slow the disk."""
+    for it before the plant runs again or is closed: a crash in the plant, in period 3 or
+    when it is closed after the last period, loses no finished period, however slow the
+    disk."""
     import signal
     import subprocess
     import sys
 
     log = tmp_path / "crashed.mcap"
-    done = subprocess.run([sys.executable, "-c", _CRASHING_CAMPAIGN, str(PAPER), str(log)],
+    done = subprocess.run([sys.executable, "-c", _CRASHING_CAMPAIGN, str(PAPER), str(log), crash],
                           cwd=PAPER.parents[1], timeout=120, check=False)
     assert done.returncode == -signal.SIGKILL
     run = read_run(log)
-    assert [record["k"] for record in run.periods] == [1, 2]
+    assert [record["k"] for record in run.periods] == periods
     assert not run.finished

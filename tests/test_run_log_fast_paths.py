@@ -41,11 +41,11 @@ def chunk_content(draw):
         times = np.sort(rng.integers(0, 20, n)).astype(np.uint64) if draw(st.booleans()) \
             else rng.integers(0, 20, n).astype(np.uint64)
         if kind == "batches":
-            channels = [tuple(draw(st.lists(PREFIXES, min_size=1, max_size=6)))
+            channels = [tuple(draw(st.lists(PREFIXES, min_size=0, max_size=6)))
                         for _ in range(draw(st.integers(1, 4)))]
             batches = [(p, rng.normal(size=(n, len(p)))) for p in channels]
             # One array as every batch's first column, as the sample times are in a run.
-            shared = rng.normal(size=n) if draw(st.booleans()) else None
+            shared = rng.normal(size=n) if draw(st.booleans()) and all(channels) else None
             for _, values in batches if shared is not None else ():
                 values[:, 0] = shared
             additions.append((kind, (batches, shared), times))

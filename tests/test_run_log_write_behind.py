@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from test_run_log import PERIOD_S, measurement, open_log, record
 
-from orchestrator.runlog import read_run
+from orchestrator.runlog import native, read_run
 from orchestrator.runlog.chunk import ChunkBuilder
 from orchestrator.runlog.mcap_records import McapChunkWriter
 from orchestrator.runlog.reader import parse_run
@@ -119,3 +119,74 @@ def test_a_run_log_reports_a_failed_write_at_its_next_period(tmp_path, fmus, mon
         log.wait_written()
     with pytest.raises(OSError, match="No space left"):
         log.close("error", "disk full")
+    assert log._writer._stream.closed  # the file is closed (and unlocked) all the same
+    assert not [t for t in log_threads() if t.native_id == log._writer.native_id]
+
+
+def test_without_a_usable_cache_the_rows_are_encoded_with_numpy(tmp_path, fmus, monkeypatch):
+    """rows.c is built into the FMU cache; where that cannot be written (a read-only home), the
+    log is still written, by numpy, to the same bytes."""
+    write(tmp_path / "with-c.mcap", fmus, background=True)
+    blocked = tmp_path / "not-a-folder"
+    blocked.write_text("")
+    monkeypatch.setenv("EXCOSIM_FMU_DIR", str(blocked / "cache"))
+    native.library.cache_clear()
+    try:
+        assert native.library() is None
+        write(tmp_path / "numpy.mcap", fmus, background=True)
+    finally:
+        monkeypatch.undo()
+        native.library.cache_clear()
+    assert (tmp_path / "numpy.mcap").read_bytes() == (tmp_path / "with-c.mcap").read_bytes()
+
+
+def test_a_campaign_whose_log_cannot_be_written_ends_with_an_error(tmp_path, monkeypatch):
+    """A write that fails on the log's thread (a full disk) ends the campaign as a failure
+    does: a result with termination "error" naming the period whose log failed, the plant
+    closed, the file closed, no thread left; nothing raised."""
+    from kinematic_plant import KinematicPlant
+    from test_campaign import PAPER
+
+    from orchestrator.campaign import run_campaign
+    from orchestrator.scenario import load_scenario
+
+    written, chunks = McapChunkWriter._write_chunk, []
+
+    def failing(self, chunk, indexes):
+        chunks.append(chunk)
+        if len(chunks) == 3:  # period 3's (the test double has no pile surface to log)
+            raise OSError(28, "No space left on device")
+        written(self, chunk, indexes)
+
+    monkeypatch.setattr(McapChunkWriter, "_write_chunk", failing)
+    scenario = load_scenario(PAPER)
+    plant = KinematicPlant(scenario.geometry())
+    before = set(log_threads())
+    result = run_campaign(scenario, plant=plant, log_path=tmp_path / "full.mcap")
+    assert result.termination == "error"
+    assert result.message.startswith("period 4: OSError: writing the log of period 3")
+    assert "No space left" in result.message
+    assert plant.closed == 1 and set(log_threads()) == before
+    assert [r["k"] for r in read_run(tmp_path / "full.mcap").periods] == [1, 2]
+
+
+def test_a_ctrl_c_while_closing_waits_for_the_file_work_first():
+    """Ctrl-C while the writer thread finishes the file: the KeyboardInterrupt comes once the
+    thread is done, so that nobody closes the stream under it."""
+    import os
+    import signal
+    import time
+
+    from orchestrator.runlog.write_behind import WriteBehind
+
+    behind, done = WriteBehind(), []
+    behind.submit(lambda: (time.sleep(0.4), done.append(True)))
+    timer = threading.Timer(0.1, os.kill, (os.getpid(), signal.SIGINT))
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        behind.close()
+    timer.join()
+    assert done == [True]  # the work was done before the KeyboardInterrupt came
+    for thread in [t for t in log_threads() if t.native_id == behind.native_id]:
+        thread.join(timeout=5)  # and the thread, with nothing left to do, ends
+        assert not thread.is_alive()

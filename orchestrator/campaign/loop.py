@@ -185,7 +185,10 @@ def run_opened(scenario: Scenario, log, plant: Plant | None, start: Start,
     def hang(detail: str) -> None:  # the watchdog's thread; the main thread is in a step
         message = f"period {len(records) + 1}: {detail}"
         if log is not None:
-            log.close("error", message)
+            try:
+                log.close("error", message)
+            except Exception:  # noqa: BLE001 - a full disk must not keep the run hanging
+                pass
         for folder in getattr(plant, "temporary_folders", lambda: [])():
             shutil.rmtree(folder, ignore_errors=True)
         on_step_timeout(message)
@@ -235,7 +238,10 @@ def _dig(scenario: Scenario, plant: Plant, log, records: list,
         if log is not None:
             # The last period went to the file while this one was planned; it is there before
             # the plant runs again (a plant that crashes finds it on file).
-            log.wait_written()
+            try:
+                log.wait_written()
+            except OSError as failure:
+                raise OSError(f"writing the log of period {k - 1}: {failure}") from failure
         try:
             measurement = plant.run_period(reference)
             check_tracking(measurement, scenario.plant.max_tracking_error_deg)
@@ -308,8 +314,17 @@ def sample_reference(trajectory: JointTrajectory, step_s: float) -> JointReferen
 
 def _close_all(plant: Plant | None, log, termination: str, message: str,
                error: BaseException | None = None) -> tuple[str, str, BaseException | None]:
-    """Close the plant, then the log; a failure to close the plant turns into an "error"
-    termination (the log records it). Returns the final (termination, message, error)."""
+    """Close the plant, then the log; a failure to close the plant, or to write the log,
+    turns into an "error" termination (the log records what it can). The log's last periods
+    are on file before the plant closes (closing FMUs runs their code, which may crash).
+    Returns the final (termination, message, error)."""
+    if log is not None:
+        try:
+            log.wait_written()
+        except Exception as failure:
+            if termination != "error":
+                termination, error = "error", failure
+                message = f"writing the log: {type(failure).__name__}: {failure}"
     try:
         if plant is not None:
             plant.close()
@@ -318,5 +333,10 @@ def _close_all(plant: Plant | None, log, termination: str, message: str,
             termination, error = "error", failure
             message = f"closing the plant: {type(failure).__name__}: {failure}"
     if log is not None:
-        log.close(termination, message)
+        try:
+            log.close(termination, message)
+        except Exception as failure:  # e.g. a full disk: the file is closed all the same
+            if termination != "error":
+                termination, error = "error", failure
+                message = f"writing the log: {type(failure).__name__}: {failure}"
     return termination, message, error

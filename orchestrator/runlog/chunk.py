@@ -100,7 +100,8 @@ class _SampleRows:
                     arrays.append(values)
                 column.append(place[id(values)])
         self.layout = layout
-        self.values = np.stack(arrays).astype(np.float64, copy=False)  # (columns, m)
+        self.values = (np.stack(arrays).astype(np.float64, copy=False) if arrays  # (columns, m)
+                       else np.empty((0, len(times))))
         self.column = np.array(column, dtype=np.int64)  # per double, its row in values
         self.first = np.array([batch.first_sequence for batch in batches], dtype=np.uint32)
         self.times = np.array(times, dtype=np.uint64)
@@ -343,6 +344,8 @@ class ChunkBuilder:
             for g_times, width, data, _, _ in self._groups:
                 at = placed[base:base + len(g_times)]
                 base += len(g_times)
+                if in_c and len(at) and int(at.max()) + width > len(records):
+                    raise RuntimeError("a chunk's rows do not fit its records (a bug)")
                 if in_c and hasattr(data, "job"):  # _SampleRows, or rows of add_rows
                     jobs.append(data.job(records, at, keep))
                 elif in_c:

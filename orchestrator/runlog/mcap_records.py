@@ -80,15 +80,14 @@ class McapChunkWriter:
         self._empty(stream, compression_level, background)
         try:
             self._index_records(memoryview(prefix))
-        except ValueError:
-            self._stop()
+        except BaseException:
+            self._stop(check=False)
             raise
         self._do(self._write, prefix)
         return self
 
     def _empty(self, stream: BinaryIO, compression_level: int, background: bool) -> None:
         self._behind = WriteBehind() if background else None
-        self._last_chunk = None
         self._stream = stream
         self._offset = 0
         self._data_crc = 0  # CRC-32 of every byte from the magic up to DataEnd (the spec's)
@@ -181,9 +180,19 @@ class McapChunkWriter:
             return None
         return self._behind.submit(task, *args)
 
-    def _stop(self) -> None:
+    def _stop(self, check: bool = True) -> None:
         if self._behind is not None:
-            self._behind.close()
+            self._behind.close(check)
+
+    def abandon(self) -> None:
+        """End the writer thread (what it holds is written; its failure, if any, is dropped)
+        and close the stream, without the summary: for a file that is given up on, e.g. when
+        making it failed. The caller's exception is what to report."""
+        try:
+            self._stop(check=False)
+        finally:
+            if not self._stream.closed:
+                self._stream.close()
 
     # Everything below that touches the stream, the offset, the CRC or the indexes runs on the
     # writer thread when there is one.
@@ -249,9 +258,12 @@ class McapChunkWriter:
             chunk.release()
             return
         indexes = chunk.message_indexes()  # the records are made on the writer thread
-        if self._behind is not None and self._last_chunk is not None:
-            self._behind.wait(self._last_chunk)  # two chunks' buffers at most
-        self._last_chunk = self._do(self._write_chunk, chunk, indexes)
+        if self._behind is not None:
+            # Everything before (the last chunk and its flush) is done: two chunks' buffers
+            # at most, and the last period is with the operating system before the next one
+            # is handed over.
+            self._behind.wait()
+        self._do(self._write_chunk, chunk, indexes)
 
     def _write_chunk(self, chunk: ChunkBuilder, indexes: dict[int, bytes]) -> None:
         records = chunk.records()

@@ -177,6 +177,9 @@ class TransformRows:
         self.names = np.frombuffer(names, dtype=np.uint8)
         self.name_at = name_at
         self.poses = np.ascontiguousarray(poses, dtype=np.float64)  # (n, T, 7)
+        if self.poses.shape != (len(times_ns), len(name_at) - 1, 7):
+            raise ValueError(f"poses have shape {self.poses.shape}, expected "
+                             f"({len(times_ns)}, {len(name_at) - 1}, 7)")
 
     def job(self, records: np.ndarray, at: np.ndarray, keep: list) -> list[int]:
         """The rows.c job that writes these records (`keep`: where arrays it points to are

@@ -65,10 +65,25 @@ class WriteBehind:
             done.result()
         self._check()
 
-    def close(self) -> None:
-        """Run what is left, end the thread, and raise the first task failure, if any. A second
-        call only raises that failure again."""
+    def close(self, check: bool = True) -> None:
+        """Run what is left, end the thread, and (with `check`) raise the first task failure,
+        if any. A second call only raises that failure again. A KeyboardInterrupt meanwhile
+        is raised once the thread has ended: the file work it holds is short, and whoever
+        closes the stream next must find the thread done with it."""
+        interrupted = False
         if not self._closed:
             self._closed = True
-            self._executor.shutdown(wait=True)
-        self._check()
+            # Waited for on a future, not by joining the thread: a join that Ctrl-C
+            # interrupts takes the thread for ended in Python 3.11 (bpo-45274's handling).
+            last = self._executor.submit(lambda: None)
+            while True:
+                try:
+                    last.result()
+                    break
+                except KeyboardInterrupt:
+                    interrupted = True
+            self._executor.shutdown(wait=not interrupted)
+        if interrupted:
+            raise KeyboardInterrupt
+        if check:
+            self._check()

@@ -4,7 +4,7 @@ Every period goes into the file as one chunk, flushed to the operating system as
 goes, so a run that is killed leaves its finished periods readable
 (`orchestrator.runlog.reader.read_run`): before `log_period` returns, or, with `background`,
 on the log's own thread (`orchestrator.runlog.write_behind`) while the run plans its next
-period, and surely when `wait_written` or the next `log_period` or `close` returns. The
+period, and surely when `wait_written`, the next `log_period` or `close` returns. The
 campaign logs in the background and waits for the log before the plant runs again
 (`orchestrator.campaign.loop`): compression and writing (about 1.5 ms a paper period) overlap
 the planning on a second core, and a crash in a plant still finds every finished period on
@@ -136,13 +136,17 @@ class RunLog:
         library = f"excosim {package_versions()['excosim']}"
         lock_for_writing(stream)
         self._writer = McapChunkWriter(stream, library=library, background=background)
-        write_run_description(
-            self._writer, scenario_json=scenario_json, scenario_text=scenario_text,
-            scenario_name=scenario_name, fmus=fmu_files, plant_kind=plant_kind,
-            target_mass_kg=target_mass_kg, geometry=geometry, overrides=list(overrides),
-            derived=derived,
-        )
-        self._writer.flush(fsync, wait=fsync)
+        try:
+            write_run_description(
+                self._writer, scenario_json=scenario_json, scenario_text=scenario_text,
+                scenario_name=scenario_name, fmus=fmu_files, plant_kind=plant_kind,
+                target_mass_kg=target_mass_kg, geometry=geometry, overrides=list(overrides),
+                derived=derived,
+            )
+            self._writer.flush(fsync, wait=fsync)
+        except BaseException:
+            self._writer.abandon()
+            raise
 
     def _setup(self, path: str | Path, geometry: ExcavatorGeometry | None,
                transform_rate_hz: float, sample_rate_hz: float | None, fsync: bool) -> None:
@@ -178,10 +182,14 @@ class RunLog:
         for channel in self._writer.channels:
             self._channels[(channel.topic, tuple(sorted(channel.metadata.items())))] = channel.id
         self._periods = periods
-        if note is not None:
-            self._writer.add_metadata("excosim.resumed", dict(note))
-        # The copy is on the disk before it may replace the original.
-        self._writer.flush(True, wait=True)
+        try:
+            if note is not None:
+                self._writer.add_metadata("excosim.resumed", dict(note))
+            # The copy is on the disk before it may replace the original.
+            self._writer.flush(True, wait=True)
+        except BaseException:
+            self._writer.abandon()  # the caller closes the stream and removes the copy
+            raise
         return self
 
     # -- channels ---------------------------------------------------------------------------
@@ -354,10 +362,13 @@ class RunLog:
             raise ValueError(f"termination must be one of {', '.join(TERMINATIONS)}, "
                              f"got {termination!r}")
         self._closed = True
-        self._writer.add_metadata("excosim.end", {
-            "termination": termination, "message": str(message), "periods": str(self._periods),
-        })
-        self._writer.finish()
+        try:
+            self._writer.add_metadata("excosim.end", {
+                "termination": termination, "message": str(message),
+                "periods": str(self._periods),
+            })
+        finally:  # a write that failed on the writer thread raises above: still close
+            self._writer.finish()
 
     def __enter__(self) -> RunLog:
         return self

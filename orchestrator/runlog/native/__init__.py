@@ -1,7 +1,8 @@
 """The run log's row filling in C (rows.c), bound with ctypes.
 
 `library()` is the built library (gcc, built on first use and cached like the FMUs:
-fmus.shared_library), or None where it cannot be had (no gcc, a big-endian host): the chunk
+fmus.shared_library), or None where it cannot be had (no gcc, a cache folder that cannot be
+written, a big-endian host): the chunk
 builder then fills its rows with numpy, to the same bytes (tests/test_run_log_fast_paths.py).
 `write(jobs)` runs a table of rows.c jobs (`job(kind, *arguments)` each) in one call;
 `pointer(array)` is the address of an array, as a job's argument.
@@ -27,9 +28,9 @@ def library() -> ctypes.CDLL | None:
         return None
     try:
         path = build_library("runlog_rows", Path(__file__).resolve().parent, ("rows.c",))
-    except BuildError:
+        loaded = ctypes.CDLL(str(path))
+    except (BuildError, OSError):  # no gcc; a cache folder that cannot be written or read
         return None
-    loaded = ctypes.CDLL(str(path))
     loaded.write_records.argtypes = [ctypes.c_void_p, ctypes.c_long]
     loaded.write_records.restype = ctypes.c_long
     return loaded
