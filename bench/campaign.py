@@ -68,6 +68,9 @@ except ImportError:  # a tree from before the log's writer thread
 
 SCENARIO = TREE / "scenarios" / "paper-2020.toml"
 WRITER_CPU: int | None = None
+# The CPUs the first process was allowed, handed to the side-by-side runs (which would
+# otherwise inherit its own pinning to one CPU, and run the log's thread on the run's CPU).
+CPUS_VARIABLE = "EXCOSIM_BENCH_CPUS"
 
 
 def pin_threads() -> None:
@@ -76,7 +79,9 @@ def pin_threads() -> None:
     global WRITER_CPU
     if not hasattr(os, "sched_setaffinity"):
         return
-    cpus = sorted(os.sched_getaffinity(0))
+    given = os.environ.get(CPUS_VARIABLE)
+    cpus = sorted(map(int, given.split(","))) if given else sorted(os.sched_getaffinity(0))
+    os.environ[CPUS_VARIABLE] = ",".join(map(str, cpus))
     os.sched_setaffinity(0, {cpus[0]})
     WRITER_CPU = cpus[min(1, len(cpus) - 1)]
     if write_behind is None:
