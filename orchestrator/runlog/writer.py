@@ -6,9 +6,9 @@ goes, so a run that is killed leaves its finished periods readable
 on the log's own thread (`orchestrator.runlog.write_behind`) while the run plans its next
 period, and surely when `wait_written`, the next `log_period` or `close` returns. The
 campaign logs in the background and waits for the log before the plant runs again
-(`orchestrator.campaign.loop`): compression and writing (about 1.5 ms a paper period) overlap
-the planning on a second core, and a crash in a plant still finds every finished period on
-file. Log time is campaign time: ns since the start of
+(`orchestrator.campaign.loop`): filling, compression and writing (about 1.7 ms a paper
+period) overlap the planning on a second core, and a crash in a plant still finds every
+finished period on file. Log time is campaign time: ns since the start of
 period 1 (t0 of a period + the plant's sample time).
 
 Channels (schemas in `orchestrator.runlog.schemas`, frames in `orchestrator.runlog.scene`):
