@@ -89,7 +89,7 @@ def chunk_of(n: int) -> ChunkBuilder:
 
 def test_a_failed_write_is_raised_by_the_next_call_and_the_stream_closed():
     stream = FullDisk(room=20_000)
-    writer = McapChunkWriter(stream, library="test")
+    writer = McapChunkWriter(stream, library="test", background=True)
     channel = writer.add_channel("/x", "json", 0)
     writer.write_chunk(chunk_of(5))  # fits
     writer.flush(wait=True)

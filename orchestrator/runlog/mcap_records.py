@@ -14,7 +14,7 @@ summary offsets), Footer and magic. `flush` pushes everything to the operating s
 optionally to the disk), so a process killed after a flush leaves a file a streaming reader
 reads up to that point.
 
-With `background` (the default), the file work (compressing chunks, CRCs, writes, flushes)
+With `background`, the file work (compressing chunks, CRCs, writes, flushes)
 runs in order on the writer's own thread (`orchestrator.runlog.write_behind`): each call
 encodes what it adds and hands the bytes over; `flush(wait=True)` and `finish` wait for the
 thread. Ids, sequence numbers and the schema and channel lists are the caller's thread's.
@@ -61,14 +61,14 @@ class McapChunkWriter:
     False: every call has written its records when it returns."""
 
     def __init__(self, stream: BinaryIO, *, library: str, profile: str = "",
-                 compression_level: int = -1, background: bool = True) -> None:
+                 compression_level: int = -1, background: bool = False) -> None:
         self._empty(stream, compression_level, background)
         self._do(self._write, MAGIC)
         self._do(self._write, _record_bytes(Header(profile=profile, library=library)))
 
     @classmethod
     def continued(cls, stream: BinaryIO, prefix: bytes, compression_level: int = -1,
-                  background: bool = True) -> McapChunkWriter:
+                  background: bool = False) -> McapChunkWriter:
         """A writer that first writes `prefix`, the data section of a file this writer began
         (magic, Header, then whole records, each chunk followed by all its message indexes),
         and then goes on as the writer that wrote it would have: the same schema and channel
@@ -252,8 +252,9 @@ class McapChunkWriter:
 
     def write_chunk(self, chunk: ChunkBuilder) -> None:
         """Compress `chunk` and write it with its message indexes (nothing if it is empty),
-        then release its buffers. With a writer thread, the records are put in order here and
-        the rest is done there; at most one chunk waits for it (a second waits here)."""
+        then release its buffers. With a writer thread, the rows' places and the message
+        indexes are worked out here and the rest is done there, once everything handed to it
+        before is written (this call waits for that)."""
         if chunk.start_time is None:
             chunk.release()
             return
