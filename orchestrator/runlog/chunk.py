@@ -86,8 +86,8 @@ def _batch_layout(batches: tuple[tuple[int, tuple[bytes, ...]], ...]) -> _BatchL
 
 class _SampleRows:
     """The rows of one `add_batches` call, kept as their values until the chunk's records are
-    made: `write(records, at)` puts row i at byte at[i]. Holds copies, not the caller's
-    arrays: the records may be made on another thread after the caller has moved on."""
+    made: its rows.c `job`, or `write` with numpy, puts row i at byte at[i]. Holds copies, not
+    the caller's arrays: the records may be made on another thread after the caller moved on."""
 
     def __init__(self, layout: _BatchLayout, batches: list[DoubleBatch],
                  times: np.ndarray) -> None:
