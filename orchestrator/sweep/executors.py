@@ -111,6 +111,9 @@ class _Worker:
         elif self.process.is_alive():
             return None
         self.task, self.dead = None, True
+        # A dying process closes its end of the pipe a moment before it can be reaped (longer
+        # with more threads to end): wait for it, or its exit status would read None.
+        self.process.join(timeout=10)
         return _died(task, self.process.exitcode)
 
     def stop(self) -> None:
