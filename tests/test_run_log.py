@@ -74,14 +74,19 @@ def record(k: int) -> dict:
             "spline": {"knots": [0.0, 0.0, 1.5, 3.0], "coefficients": [[1.0, 2.0], [3.0, k]]}}
 
 
-@pytest.fixture
-def fmus(tmp_path):
+def fake_fmus(folder: Path) -> dict[str, Path]:
+    """FMU name -> a file of random bytes in `folder` (the log attaches and hashes them)."""
     paths = {}
     for name, size in (("HydraulicCylinder", 3000), ("Pile", 5000)):
-        path = tmp_path / f"{name}.fmu"
+        path = folder / f"{name}.fmu"
         path.write_bytes(np.random.default_rng(size).bytes(size))
         paths[name] = path
     return paths
+
+
+@pytest.fixture
+def fmus(tmp_path):
+    return fake_fmus(tmp_path)
 
 
 def open_log(path, fmus, **options):

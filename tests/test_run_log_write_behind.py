@@ -7,7 +7,7 @@ import threading
 
 import numpy as np
 import pytest
-from test_run_log import PERIOD_S, measurement, open_log, record
+from test_run_log import PERIOD_S, fake_fmus, measurement, open_log, record
 
 from orchestrator.runlog import native, read_run
 from orchestrator.runlog.chunk import ChunkBuilder
@@ -19,12 +19,7 @@ from orchestrator.runlog.write_behind import THREAD_NAME
 
 @pytest.fixture
 def fmus(tmp_path):
-    paths = {}
-    for name, size in (("HydraulicCylinder", 3000), ("Pile", 5000)):
-        path = tmp_path / f"{name}.fmu"
-        path.write_bytes(np.random.default_rng(size).bytes(size))
-        paths[name] = path
-    return paths
+    return fake_fmus(tmp_path)
 
 
 def log_threads() -> list[threading.Thread]:
