@@ -92,15 +92,21 @@ class NativeStep:
     call_address: int
     label: str
     failure: Callable[[int, float], RuntimeError]
+    save_address: int | None = None
+    """rollback.c's fmu_save_state and fmu_restore_state and the bound Rollback
+    (FastSlave.rollback), None where the FMU cannot get and set its state."""
+    restore_address: int | None = None
+    rollback_address: int | None = None
 
 
 def _one_call_failure(label: str, calls: tuple[str, str, str], last_error: list,
                       code: int, t: float) -> RuntimeError:
-    failed = code >> 8  # which call (fmi2_step.c): 1 set, 2 step, 3 get, 4 terminate asked
-    if failed == 4:
+    failed = code >> 8  # which call (fmi2_step.c): 1 set, 2 step, 3 get, 4 terminate asked;
+    if failed == 4:  # rollback.c: 5 get state, 6 set state
         return RuntimeError(f"{label} asked to terminate the simulation at t = {t}")
     said = f": {last_error[0]}" if last_error[0] else ""
-    return RuntimeError(f"{label}: {calls[failed - 1]} failed at t = {t}{said}")
+    name = calls[failed - 1] if 1 <= failed <= len(calls) else f"call {failed}"
+    return RuntimeError(f"{label}: {name} failed at t = {t}{said}")
 
 
 class FastSlave:
@@ -216,10 +222,26 @@ class FastSlave:
                 ctypes.addressof(vr_out), len(outputs), self._out.ctypes.data)
             one_call = fast.fmi2_step if version == 2 else fast.fmi3_step
             bound = ctypes.c_void_p(ctypes.addressof(self._fast))
+            state_names = ("fmi2GetFMUstate", "fmi2SetFMUstate") if version == 2 else \
+                ("fmi3GetFMUState", "fmi3SetFMUState")
             failure = functools.partial(_one_call_failure, label,
-                                        (set_name, step_name, get_name), last_error)
+                                        (set_name, step_name, get_name, "", *state_names),
+                                        last_error)
+            rollback = {}
+            if self.can_roll_back:
+                get_state, set_state = (dll._FuncPtr((n, dll)) for n in state_names)
+                self.rollback = fast_step.Rollback(
+                    self.slave.component, ctypes.cast(get_state, ctypes.c_void_p).value,
+                    ctypes.cast(set_state, ctypes.c_void_p).value, None)
+                self._free_state = dll._FuncPtr((
+                    "fmi2FreeFMUstate" if version == 2 else "fmi3FreeFMUState", dll))
+                rollback = {"save_address": ctypes.cast(fast.fmu_save_state,
+                                                        ctypes.c_void_p).value,
+                            "restore_address": ctypes.cast(fast.fmu_restore_state,
+                                                           ctypes.c_void_p).value,
+                            "rollback_address": ctypes.addressof(self.rollback)}
             self.native_step = NativeStep(ctypes.cast(one_call, ctypes.c_void_p).value,
-                                          bound.value, label, failure)
+                                          bound.value, label, failure, **rollback)
 
             # `component` a local of the frame, as in the other paths: the step watchdog
             # identifies the instance by it (orchestrator.campaign.watchdog.stuck_step).
@@ -327,6 +349,12 @@ class FastSlave:
         return np.array(getter(references))
 
     @property
+    def can_roll_back(self) -> bool:
+        """Whether the FMU declares that it can get and set its state (canGetAndSetFMUstate):
+        what a master needs to repeat a step."""
+        return bool(self.description.coSimulation.canGetAndSetFMUstate)
+
+    @property
     def can_serialize_state(self) -> bool:
         """Whether the FMU declares that it can get, set and serialize its state."""
         cs = self.description.coSimulation
@@ -358,6 +386,11 @@ class FastSlave:
         """Terminate and free the instance, unload the binary, remove the unzip folder."""
         self.native_step = None  # nothing may step the freed instance from C
         if self.slave is not None:
+            rollback = getattr(self, "rollback", None)
+            if rollback is not None and rollback.state:
+                self._free_state(ctypes.c_void_p(self.slave.component),
+                                 ctypes.byref(ctypes.c_void_p(rollback.state)))
+                rollback.state = None
             try:
                 self.slave.terminate()
             except Exception:  # an instance in error state must still be freed

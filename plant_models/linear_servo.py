@@ -176,18 +176,20 @@ class LinearJointServo:
     a_ref (m/s^2) and force (N) are accepted and unused (no pressure feedback).
     """
 
-    __slots__ = ("_kp", "_per_velocity")
+    __slots__ = ("_kp", "_per_velocity", "_held")
 
     def __init__(self, design: LinearServoDesign) -> None:
         self._kp = design.position_gain_1_s
         self._per_velocity = 1.0 / design.model.velocity_gain_m_s
+        self._held = 0.0
 
-    def state(self) -> tuple[()]:
-        """Nothing carries from one step to the next (JointServo's interface)."""
-        return ()
+    def state(self) -> tuple[float]:
+        """The spool command held until the next sample (JointServo's interface)."""
+        return (self._held,)
 
-    def set_state(self) -> None:
-        """Continue from a `state()`: there is nothing to set."""
+    def set_state(self, held: float = 0.0) -> None:
+        """Continue from a `state()` (a resumed run)."""
+        self._held = float(held)
 
     def velocity_command(self, x_ref: float, v_ref: float, a_ref: float, x: float,
                          force: float) -> float:

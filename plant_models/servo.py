@@ -251,7 +251,7 @@ class JointServo:
 
     __slots__ = ("_kp", "_kf", "_keep", "_gain", "_mass", "_filtered", "_last", "_extend",
                  "_retract", "_least", "_per_reserve_extend", "_per_reserve_retract",
-                 "_compensated", "_metered", "_pull", "_p_tank", "_areas")
+                 "_compensated", "_metered", "_pull", "_p_tank", "_areas", "_held")
 
     def __init__(self, design: ServoDesign) -> None:
         two_over_t = 2.0 / design.step_s
@@ -286,16 +286,20 @@ class JointServo:
         self._p_tank, self._areas = p_t, (a, b)
         self._filtered = 0.0
         self._last: float | None = None
+        self._held = 0.0
 
-    def state(self) -> tuple[float, float | None]:
-        """What the law carries from one step to the next: the high-passed force (N) and the
-        last force sample it filtered (N; None before the first step)."""
-        return self._filtered, self._last
+    def state(self) -> tuple[float, float | None, float]:
+        """What the servo carries from one sample to the next: the high-passed force (N), the
+        last force sample it filtered (N; None before the first sample) and the spool command
+        it holds until its next sample (the step loop, orchestrator.plants.native, samples
+        every design.step_s)."""
+        return self._filtered, self._last, self._held
 
-    def set_state(self, filtered_n: float, last_n: float | None) -> None:
+    def set_state(self, filtered_n: float, last_n: float | None, held: float = 0.0) -> None:
         """Continue from a `state()` (a resumed run)."""
         self._filtered = float(filtered_n)
         self._last = None if last_n is None else float(last_n)
+        self._held = float(held)
 
     def velocity_command(self, x_ref: float, v_ref: float, a_ref: float, x: float,
                          force: float) -> float:

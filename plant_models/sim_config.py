@@ -30,7 +30,14 @@ class SimulatedExcavatorConfig:
     geometry: the arm. boom, stick, bucket: cylinder FMUs (role "cylinder"); pile: the Pile FMU
         (role "pile"); see plant_models.model_spec. A cylinder FMU also needs a parameter that
         sets its initial stroke, the role "x0" (map it in `ports` if it is named otherwise).
-    communication_step_s: s, the co-simulation step and the servo's sample time.
+    communication_step_s: s, the co-simulation step.
+    servo_sample_s: s, the servos' sample time, a property of the controller (the machine's
+        ECU), independent of the step: a multiple of communication_step_s; the servos are
+        designed for it and hold their command between samples.
+    coupling_tolerance_rad_s2: rad/s^2, how closely each step's cross inertia of the arm must
+        agree with the joint accelerations it produces, as joint acceleration (the arm
+        coupling, orchestrator.plants.native); coupling_max_iterations: the most tries of one
+        step (a step still above the tolerance then is counted as unconverged).
     load_cell_noise_kg: standard deviation (kg) of the Gaussian load-cell noise (0: exact).
     seed: seed of the load-cell noise generator (one generator per plant: reproducible).
     start_pose_rad: (3,) rad joint angles the arm starts at, at rest; None: the first
@@ -57,6 +64,9 @@ class SimulatedExcavatorConfig:
     bucket: FmuSpec
     pile: FmuSpec
     communication_step_s: float = 0.01
+    servo_sample_s: float = 0.01
+    coupling_tolerance_rad_s2: float = 1e-3
+    coupling_max_iterations: int = 8
     load_cell_noise_kg: float = 0.0
     seed: int = 0
     start_pose_rad: tuple[float, float, float] | None = None
@@ -75,6 +85,9 @@ class SimulatedExcavatorConfig:
                 raise ValueError(f"SimulatedExcavatorConfig.{name} must be an FmuSpec")
         checks = (
             ("communication_step_s", self.communication_step_s > 0.0, "> 0 s"),
+            ("servo_sample_s", self.servo_sample_s > 0.0, "> 0 s"),
+            ("coupling_tolerance_rad_s2", self.coupling_tolerance_rad_s2 > 0.0, "> 0 rad/s^2"),
+            ("coupling_max_iterations", self.coupling_max_iterations >= 1, ">= 1"),
             ("load_cell_noise_kg", self.load_cell_noise_kg >= 0.0, ">= 0 kg"),
             ("start_tolerance_rad", self.start_tolerance_rad > 0.0, "> 0 rad"),
             ("servo_damping", 0.0 < self.servo_damping < 2.0, "in (0, 2)"),
@@ -87,6 +100,11 @@ class SimulatedExcavatorConfig:
             if not (math.isfinite(value) and ok):
                 raise ValueError(f"SimulatedExcavatorConfig.{name} must be {requirement}, "
                                  f"got {value!r}")
+        every = self.servo_sample_s / self.communication_step_s
+        if abs(every - round(every)) > 1e-9 * every or round(every) < 1:
+            raise ValueError(f"SimulatedExcavatorConfig.servo_sample_s {self.servo_sample_s!r} s "
+                             f"must be a multiple of communication_step_s "
+                             f"{self.communication_step_s!r} s")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int):
             raise ValueError(f"SimulatedExcavatorConfig.seed must be an int, got {self.seed!r}")
         if self.supply is not None and not isinstance(self.supply, LoadSensingPump):

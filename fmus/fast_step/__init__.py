@@ -1,6 +1,7 @@
 """fmi2_step.c and fmi3_step.c bound with ctypes: one foreign call per FMI 2.0 or 3.0 step
 (fmus.runs.FastSlave); steps.c: n steps of one FMU over an input series in one call
-(FastSlave.run).
+(FastSlave.run); rollback.c: an FMU's state saved and restored in one call each
+(FastSlave.rollback, for a master that iterates a step).
 
 `library()` builds them on first use (fmus.shared_library: the FMUs' gcc and flags, cached
 beside them) and returns the loaded library, or None when it cannot be had (no gcc): FastSlave
@@ -25,6 +26,14 @@ class StepCall(ctypes.Structure):
                 ("n_out", ctypes.c_size_t), ("outputs", ctypes.c_void_p)]
 
 
+class Rollback(ctypes.Structure):
+    """rollback.c's Rollback: the instance, its get and set state entry points, its state
+    block (NULL until the first save)."""
+
+    _fields_ = [("instance", ctypes.c_void_p), ("get_state", ctypes.c_void_p),
+                ("set_state", ctypes.c_void_p), ("state", ctypes.c_void_p)]
+
+
 @lru_cache(maxsize=1)
 def library() -> ctypes.CDLL | None:
     """The loaded library (fmi2_step, fmi3_step), None without a C compiler."""
@@ -33,7 +42,8 @@ def library() -> ctypes.CDLL | None:
 
     try:
         path = build_library("fast_step", Path(__file__).resolve().parent,
-                             ("fmi2_step.c", "fmi3_step.c", "steps.c"))
+                             ("fmi2_step.c", "fmi3_step.c", "steps.c",
+                                                  "rollback.c"))
     except BuildError:
         return None
     loaded = ctypes.CDLL(str(path))
@@ -46,4 +56,7 @@ def library() -> ctypes.CDLL | None:
     loaded.fmi_steps.argtypes = [ctypes.c_void_p] * 4 + [ctypes.c_long, ctypes.c_double,
                                                          ctypes.c_double, ctypes.c_void_p]
     loaded.fmi_steps.restype = ctypes.c_int
+    for name in ("fmu_save_state", "fmu_restore_state"):
+        getattr(loaded, name).argtypes = [ctypes.c_void_p]
+        getattr(loaded, name).restype = ctypes.c_int
     return loaded

@@ -282,6 +282,15 @@ class Component:
         return self._slave.read(names)
 
     @property
+    def rollback(self) -> tuple[int, int, int] | None:
+        """(save, restore, bound state) addresses of the FMU's state rollback for a loop in C
+        (fmus/fast_step/rollback.c), None where the FMU cannot get and set its state."""
+        step = self._slave.native_step
+        if step is None or step.rollback_address is None:
+            return None
+        return step.save_address, step.restore_address, step.rollback_address
+
+    @property
     def can_save_state(self) -> bool:
         """Whether the FMU can serialize its state (save_state, restore_state)."""
         return self._slave.can_serialize_state

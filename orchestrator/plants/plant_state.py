@@ -20,9 +20,14 @@ a restored instance starts from again) and everything computed from the configur
 
 The state is JSON-able (`resume_state`), format STATE_FORMAT::
 
-    {"format": 1, "fmus": {component: base64 of the serialized FMU state},
-     "servos": {joint: [...]}, "load_cell_rng": {...}, "steps": int,
-     "pile_time_s": float, "start_pose_rad": [boom, stick, bucket]}
+    {"format": 2, "fmus": {component: base64 of the serialized FMU state},
+     "servos": {joint: [...]}, "arm_coupling": {"force_n": [3], "mobility_s_kg": [3]},
+     "load_cell_rng": {...}, "steps": int, "pile_time_s": float,
+     "start_pose_rad": [boom, stick, bucket]}
+
+("arm_coupling": what the step loop's arm coupling carries from step to step,
+orchestrator.plants.native.NativeCoupling.state; format 1, before the servo held its command
+and the coupling was iterated, is not read.)
 """
 
 from __future__ import annotations
@@ -37,7 +42,7 @@ import numpy as np
 
 from plant_models.linkage import JOINT_NAMES
 
-STATE_FORMAT = 1
+STATE_FORMAT = 2
 
 
 class ResumableState:
@@ -59,6 +64,7 @@ class ResumableState:
                      for name, component in components.items()},
             "servos": {joint: list(servo.state())
                        for joint, servo in zip(JOINT_NAMES, self._servos, strict=True)},
+            "arm_coupling": self._loop.state(),
             "load_cell_rng": self._rng.bit_generator.state,
             "steps": self._steps,
             "pile_time_s": self._pile_time,
@@ -99,6 +105,12 @@ class ResumableState:
             except (TypeError, ValueError):
                 raise ValueError(f"{joint}: servo state {values!r} does not fit its "
                                  f"{type(servo).__name__}") from None
+        coupling = fields["arm_coupling"]
+        try:
+            self._loop.set_state(coupling)
+        except (TypeError, ValueError, KeyError):
+            raise ValueError(f"arm_coupling state {coupling!r} is not 3 forces (N) and 3 "
+                             "mobilities (s/kg)") from None
         try:
             self._rng.bit_generator.state = fields["load_cell_rng"]
         except (TypeError, ValueError, KeyError) as error:
@@ -114,7 +126,8 @@ def _checked(state: Any) -> Mapping[str, Any]:
     if state.get("format") != STATE_FORMAT:
         raise ValueError(f"plant state format {state.get('format')!r}; this version reads "
                          f"{STATE_FORMAT}")
-    kinds = {"fmus": Mapping, "servos": Mapping, "load_cell_rng": Mapping, "steps": int,
+    kinds = {"fmus": Mapping, "servos": Mapping, "arm_coupling": Mapping,
+             "load_cell_rng": Mapping, "steps": int,
              "pile_time_s": float, "start_pose_rad": list}
     for name, kind in kinds.items():
         value = state.get(name)

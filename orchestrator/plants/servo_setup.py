@@ -67,6 +67,6 @@ def linear_servo(joint: str, spec, stroke_m: float, config: SimulatedExcavatorCo
         raise ValueError(f"{joint}: linear_model.stroke_m {model.stroke_m} m differs from the "
                          f"linkage's stroke {stroke_m:.4g} m by more than 1 %")
     points = tuple(f.model for f in identified.fits) if identified is not None else ()
-    design = design_linear_servo(model, config.communication_step_s, joint, points,
+    design = design_linear_servo(model, config.servo_sample_s, joint, points,
                                  config.servo_gain_margin_db, config.servo_phase_margin_deg)
     return design, model, identified

@@ -8,18 +8,23 @@ One communication step h from t_k (the reference is interpolated onto the grid t
 2. the Pile steps with the tip at t_k: it cuts along the tip's path since the last step and
    returns the bucket's content and the soil force there (a function of the tip's path, so
    nothing lags a step);
-3. cylinder loads from gravity (links and payload) and the soil force; each servo
-   (plant_models.servo; plant_models.linear_servo for a cylinder FMU known only by its linear
-   model, given or identified) turns the stroke reference, the measured stroke and force into
-   a spool command; with a load-sensing supply (config.supply, plant_models.supply) the pump's
-   pressure and the load-sensing pressure follow from the commands and the chamber pressures
-   at t_k (a cylinder FMU without the inputs p_pump and p_LS stays off the pump, on whatever
-   supply it models itself); the cylinders step from t_k to t_k + h with command, load and
-   supply held.
+3. the arm's loads: gravity (links and payload), the soil force through the Jacobian, the
+   velocity products and the pose-dependent mass matrix (orchestrator.plants.arm_dynamics);
+   each servo (plant_models.servo; plant_models.linear_servo for a cylinder FMU known only by
+   its linear model, given or identified) samples at its own sample time
+   (config.servo_sample_s, a multiple of the step) and turns the stroke reference, the
+   measured stroke and force into a spool command it holds until its next sample; with a
+   load-sensing supply (config.supply, plant_models.supply) the pump's pressure and the
+   load-sensing pressure follow from the commands and the chamber pressures at t_k (a
+   cylinder FMU without the inputs p_pump and p_LS stays off the pump, on whatever supply it
+   models itself);
+4. the cylinders step from t_k to t_k + h, each with its own diagonal inertia (mass_load) and
+   the arm's cross inertia in its load F_ext; where the three FMUs can roll back their state
+   the step is repeated until that cross inertia agrees with the accelerations it produces
+   (config.coupling_tolerance_rad_s2), else it comes from the planned accelerations
+   (`coupling_note` says why).
 
-Steps 1-3 run in C (orchestrator.plants.native) where it can serve, with the FMUs stepped from
-C too where each has a one-call step, else in Python (orchestrator.plants.coupling_loop), with
-the same bits.
+The loop runs in C (orchestrator.plants.native), one implementation for every plant.
 
 At the end of a period the load cell reads the Pile's bucket mass (plus Gaussian noise from one
 generator seeded per plant), then the Pile steps once more with `dump` high and the bucket
@@ -33,7 +38,8 @@ Measurement rows are samples at t_k (period time from 0): joints and cylinder ou
 the Pile's outputs after its step to the tip at t_k, and the inputs (u, F_ext) held from t_k.
 Signals: "<joint>.x, .v, .p_A, .p_B, .F" (cylinder outputs by role), "<joint>.u, .F_ext,
 .mass_load" (inputs),
-"pile.<output role>", "tip.y", "tip.z", "tip.bucket_angle"; with a load-sensing supply also
+"pile.<output role>", "tip.y", "tip.z", "tip.bucket_angle", "coupling.iterations" (the tries
+of the step from t_k: 1 when the first agreed, or in an explicit coupling); with a load-sensing supply also
 "supply.p_pump", "supply.p_LS" (Pa) and "supply.sharing" (the flow-sharing factor, 1: the pump
 keeps up).
 """
@@ -49,11 +55,9 @@ import numpy as np
 
 from orchestrator.plants.arm_coupling import ArmCoupling
 from orchestrator.plants.arm_dynamics import ArmInertia
-from orchestrator.plants.coupling_loop import PythonCoupling
 from orchestrator.plants.identify import CylinderIdentification
 from orchestrator.plants.master import Master, check_component, port_conversions
 from orchestrator.plants.native import NativeCoupling
-from orchestrator.plants.native import unavailable as native_unavailable
 from orchestrator.plants.plant_state import ResumableState
 from orchestrator.plants.servo_setup import (
     design_servo_cached,
@@ -74,7 +78,7 @@ from plant_models.sim_config import SimulatedExcavatorConfig
 _COLUMNS = (
     *(f"{j}.{n}" for j in JOINT_NAMES for n in (*CYLINDER_OUTPUTS, "u", "F_ext", "mass_load")),
     *(f"pile.{n}" for n in PILE_OUTPUTS),
-    "tip.y", "tip.z", "tip.bucket_angle",
+    "tip.y", "tip.z", "tip.bucket_angle", "coupling.iterations",
 )
 _SUPPLY_COLUMNS = ("supply.p_pump", "supply.p_LS", "supply.sharing")
 _PROFILE = re.compile(r"^h\[(\d+)\]$")
@@ -87,9 +91,6 @@ class SimulatedExcavator(ResumableState):
     resume_state() / restore_state() save and restore what carries across periods."""
 
     kind = "sim"
-    # The per-step coupling in C (orchestrator.plants.native) where it can serve; False: the
-    # Python loop (orchestrator.plants.coupling_loop), e.g. to compare the two.
-    native_coupling = True
 
     def __init__(self, config: SimulatedExcavatorConfig) -> None:
         self.config = config
@@ -148,7 +149,7 @@ class SimulatedExcavator(ResumableState):
                 else config.design_strokes_m[index]
             try:
                 designs.append(design_servo_cached(
-                    model, config.communication_step_s, design_stroke, config.servo_damping,
+                    model, config.servo_sample_s, design_stroke, config.servo_damping,
                     config.servo_gain_margin_db, config.servo_phase_margin_deg))
             except ValueError as error:  # the design's own message does not name the joint
                 raise ValueError(f"{joint}: {error}") from None
@@ -211,16 +212,16 @@ class SimulatedExcavator(ResumableState):
         profile, grid = self._profile()
         self._initial_surface = None if profile is None or grid is None else (grid, profile)
 
-    def _step_loop(self) -> NativeCoupling | PythonCoupling:
-        """The step loop: in C unless `native_coupling` is off or it cannot serve (why:
-        `step_loop_note`)."""
-        self.step_loop_note = native_unavailable(self._servos) if self.native_coupling \
-            else "native_coupling is off"
-        if self.step_loop_note is None:
-            return NativeCoupling(self._master, self.coupling, self.inertia, self._servos,
-                                  self._supply_parameters, self.config.communication_step_s)
-        return PythonCoupling(self._master, self.coupling, self.inertia, self._servos,
-                              self._supply_law, self.config.communication_step_s)
+    def _step_loop(self) -> NativeCoupling:
+        """The step loop (orchestrator.plants.native); `coupling_note` says why its arm
+        coupling is explicit (None: implicit, iterated with rollback)."""
+        cfg = self.config
+        loop = NativeCoupling(self._master, self.coupling, self.inertia, self._servos,
+                              self._supply_parameters, cfg.communication_step_s,
+                              cfg.servo_sample_s, cfg.coupling_tolerance_rad_s2,
+                              cfg.coupling_max_iterations)
+        self.coupling_note = loop.note
+        return loop
 
     def temporary_folders(self) -> list[str]:
         """The folders the FMUs are extracted into (removed by close()); for a clean-up that
@@ -310,8 +311,7 @@ class SimulatedExcavator(ResumableState):
 
     def _track(self, strokes: np.ndarray, rates: np.ndarray, accelerations: np.ndarray):
         """The step loop of one stroke reference (each (n, 3)): signal rows (n, columns) and
-        joint angles (n, 3), in C where it can (orchestrator.plants.native), else in Python
-        (orchestrator.plants.coupling_loop): the same bits either way."""
+        joint angles (n, 3) (orchestrator.plants.native)."""
         pile = self._master["pile"]
         pile.inputs[pile.input_index["dump"]] = 0.0
         try:

@@ -1,26 +1,23 @@
-"""The simulated excavator's per-step coupling in C (coupling.c), bound with ctypes.
+"""The simulated excavator's step loop (coupling.c), bound with ctypes: the one implementation.
 
-`NativeCoupling(...)` packs what the plant's Python loop reads per step (the arm coupling's
-stroke tables and geometry, the arm inertia, the servos' constants and filter states, the
-pump's law) into coupling.c's struct once; `track(strokes, rates, accelerations, ...)` then
-runs a period's steps in one call of coupling.c's loop, which steps the four FMUs itself
-through their one-call steps (fmus.runs.NativeStep): Python's per-step work (six foreign calls
-and the loop) was about 4 us of a step's 16. The loop keeps a board of the FMU in a step
-(orchestrator.plants.native.board), so that a stuck or crashing FMU is still named. Where an
-FMU has no one-call step (no fmus.fast_step; a component that converts its ports steps
-through Python), the steps run in Python with one call to the coupling before the Pile's step
-and one after it. Either way it gives the same bits as the Python loop
-(orchestrator.plants.coupling_loop.PythonCoupling; tests/test_native_coupling.py).
+`NativeCoupling(...)` packs what the loop reads per step (the arm coupling's stroke tables and
+geometry, the arm inertia, the servos' constants and states, the pump's law, the arm
+coupling's settings) into coupling.c's struct once; `track(strokes, rates, accelerations,
+...)` then runs a stroke reference's steps in one call. The loop steps the four FMUs itself:
+through their one-call steps (fmus.runs.NativeStep), or, for a component that converts its
+ports, through a callback into Python. It keeps a board of the FMU in a step
+(orchestrator.plants.native.board), so that a stuck or crashing FMU is still named.
 
-`unavailable(servos)` says why the C coupling cannot serve (one line), None when it can: it
-needs gcc (the library is built on first use and cached like the FMUs: fmus.shared_library)
-and servos that are plant_models.servo.JointServo (the linear servo runs in Python).
+The arm coupling is implicit (iterated with the cylinders' state rollback, coupling.c's
+docstring) when all three cylinder FMUs can get and set their state, else explicit (the cross
+inertia from the planned accelerations); `coupling_note` says which, and why.
 """
 
 from __future__ import annotations
 
 import ctypes
 import functools
+import math
 from collections.abc import Sequence
 from functools import lru_cache
 from pathlib import Path
@@ -32,6 +29,7 @@ from orchestrator.plants.arm_dynamics import ArmInertia
 from orchestrator.plants.master import Master
 from orchestrator.plants.native.board import LOOP_CODES, Board
 from plant_models.geometry import GRAVITY_M_S2
+from plant_models.linear_servo import LinearJointServo
 from plant_models.servo import JointServo
 
 _DOUBLE_P = ctypes.POINTER(ctypes.c_double)
@@ -43,13 +41,14 @@ class _Table(ctypes.Structure):
 
 
 class _Servo(ctypes.Structure):
-    _fields_ = [(name, ctypes.c_double) for name in (
+    _fields_ = [("linear", ctypes.c_long)] + [(name, ctypes.c_double) for name in (
         "kp", "kf", "keep", "gain", "mass", "extend", "retract", "least", "per_reserve_extend",
         "per_reserve_retract")] + [
         ("metered", ctypes.c_double * 2), ("pull", ctypes.c_double * 2),
         ("p_tank", ctypes.c_double), ("areas", ctypes.c_double * 2),
-        ("compensated", ctypes.c_long), ("filtered", ctypes.c_double),
-        ("last", ctypes.c_double), ("has_last", ctypes.c_long)]
+        ("compensated", ctypes.c_long), ("per_velocity", ctypes.c_double),
+        ("filtered", ctypes.c_double), ("last", ctypes.c_double), ("has_last", ctypes.c_long),
+        ("held", ctypes.c_double)]
 
 
 class _Coupling(ctypes.Structure):
@@ -66,16 +65,26 @@ class _Coupling(ctypes.Structure):
         ("servo", _Servo * 3),
         ("supplied", ctypes.c_long), ("full", ctypes.c_double * 3),
         ("q_max", ctypes.c_double), ("margin", ctypes.c_double), ("ceiling", ctypes.c_double),
+        ("servo_every", ctypes.c_long), ("implicit", ctypes.c_long),
+        ("max_iterations", ctypes.c_long), ("tolerance", ctypes.c_double),
+        ("force", ctypes.c_double * 3), ("mobility", ctypes.c_double * 3),
         ("pose", ctypes.c_double * 30),
     ]
 
 
 class _Loop(ctypes.Structure):
     _fields_ = [("step", ctypes.c_void_p * 4), ("call", ctypes.c_void_p * 4),
+                ("save", ctypes.c_void_p * 3), ("restore", ctypes.c_void_p * 3),
+                ("rollback", ctypes.c_void_p * 3),
                 ("h", ctypes.c_double), ("steps", ctypes.c_long),
-                ("pile_time", ctypes.c_double), ("board", ctypes.c_void_p)]
+                ("pile_time", ctypes.c_double), ("board", ctypes.c_void_p),
+                ("iterations", ctypes.c_long), ("unconverged", ctypes.c_long)]
 
 
+_STEP_CALLBACK = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_double,
+                                  ctypes.c_double)
+_CALLBACK_FAILED = 0x7ff  # a Python step's code: the exception is kept and raised after the loop
+COLUMNS = 35  # the rows' columns without the supply's 3 (simulated_excavator's signals)
 _ORDER = ("boom", "stick", "bucket", "pile")  # coupling.c's Loop and Board
 
 
@@ -91,27 +100,29 @@ def _library() -> ctypes.CDLL | str:
         return str(error).splitlines()[0]
     library = ctypes.CDLL(str(path))
     library.coupling_size.restype = ctypes.c_long
-    offsets = (ctypes.c_long * 12)()
+    offsets = (ctypes.c_long * 15)()
     library.coupling_offsets(offsets)
     expected = [getattr(_Coupling, f).offset for f in ("n", "table", "lengths", "servo",
                                                        "supplied", "pose")] \
         + [_Servo.compensated.offset, _Servo.has_last.offset, _Table.inv_dx.offset,
-           ctypes.sizeof(_Loop), _Loop.pile_time.offset, _Loop.board.offset]
+           ctypes.sizeof(_Loop), _Loop.pile_time.offset, _Loop.board.offset,
+           _Coupling.force.offset, _Servo.held.offset, _Loop.unconverged.offset]
     if library.coupling_size() != ctypes.sizeof(_Coupling) or list(offsets) != expected:
         return "coupling.c's struct and its binding disagree (rebuild the library)"
     # No argtypes: ctypes then passes the pre-built pointer object as it is (FastSlave).
-    library.coupling_before_pile.restype = ctypes.c_int
-    library.coupling_after_pile.restype = None
     library.coupling_run.restype = ctypes.c_long
     return library
 
 
-def unavailable(servos: Sequence[object]) -> str | None:
-    """Why the C coupling cannot step a plant with these servos (one line), None if it can."""
-    if not all(type(servo) is JointServo for servo in servos):
-        return "a servo is not plant_models.servo.JointServo (the linear servo runs in Python)"
-    library = _library()
-    return library if isinstance(library, str) else None
+def coupling_note(master: Master) -> str | None:
+    """Why the arm coupling of `master`'s cylinders is explicit (one line naming the roles),
+    None when it is implicit (every cylinder FMU can roll back its state)."""
+    lacking = [name for name in _ORDER[:3] if master[name].rollback is None]
+    if not lacking:
+        return None
+    return (f"{', '.join(lacking)}: the FMU cannot get and set its state "
+            "(canGetAndSetFMUstate), so the arm's cross inertia comes from the planned "
+            "accelerations (explicit coupling, not converged per step)")
 
 
 def _pointer(array: np.ndarray):
@@ -121,17 +132,26 @@ def _pointer(array: np.ndarray):
 class NativeCoupling:
     """coupling.c's struct for one plant (see the module docstring): its FMUs (an
     orchestrator.plants.master.Master with components boom, stick, bucket, pile), its
-    ArmCoupling and ArmInertia, its three JointServos, the pump's
-    LoadSensingPump.law_parameters (None: each valve on its own supply) and the communication
-    step step_s (s)."""
+    ArmCoupling and ArmInertia, its three servos (JointServo or LinearJointServo), the pump's
+    LoadSensingPump.law_parameters (None: each valve on its own supply), the communication
+    step step_s (s), the servos' sample time servo_sample_s (s, a multiple of step_s), and the
+    arm coupling's tolerance_rad_s2 (joint acceleration) and max_iterations per step."""
 
     def __init__(self, master: Master, coupling: ArmCoupling, inertia: ArmInertia,
-                 servos: Sequence[JointServo], supply_parameters: tuple | None,
-                 step_s: float) -> None:
-        self._library = _library()
+                 servos: Sequence[JointServo | LinearJointServo],
+                 supply_parameters: tuple | None, step_s: float, servo_sample_s: float,
+                 tolerance_rad_s2: float = 1e-3, max_iterations: int = 8) -> None:
+        library = _library()
+        if isinstance(library, str):
+            raise ValueError(f"the step loop cannot be built: {library}")
+        self._library = library
         self._master, self._servos, self._step_s = master, tuple(servos), float(step_s)
+        every = round(servo_sample_s / step_s)
+        if every < 1 or abs(every * step_s - servo_sample_s) > 1e-9 * servo_sample_s:
+            raise ValueError(f"the servo's sample time {servo_sample_s:g} s is not a multiple "
+                             f"of the communication step {step_s:g} s")
         c = _Coupling()
-        cylinders = [master[j] for j in ("boom", "stick", "bucket")]
+        cylinders = [master[j] for j in _ORDER[:3]]
         pile = master["pile"]
         self._keep = [component.outputs for component in cylinders] \
             + [component.inputs for component in cylinders] + [pile.outputs, pile.inputs]
@@ -159,40 +179,61 @@ class NativeCoupling:
         if supply_parameters is not None:
             fulls, c.q_max, c.margin, c.ceiling = supply_parameters
             c.full[:] = [-1.0 if full is None else full for full in fulls]
+        self.note = coupling_note(master)
+        """Why the arm coupling is explicit (coupling_note), None when it is implicit."""
+        c.servo_every, c.implicit = every, self.note is None
+        c.tolerance, c.max_iterations = float(tolerance_rad_s2), int(max_iterations)
         self._c = c
         self.clock: tuple[int, float] = (0, 0.0)
         """(steps, Pile time s) where the last track() ended, an FMU error included."""
-        address = ctypes.addressof(c)
-        self._before = _bound(self._library.coupling_before_pile, address)
-        self._after = _bound(self._library.coupling_after_pile, address)
-        steps = [master[name].native_step for name in _ORDER]
-        self._board: Board | None = None
-        self.loop_note: str | None = None
-        """Why the FMUs are stepped from Python (one line), None when coupling.c's loop
-        steps them."""
-        if any(step is None for step in steps):
-            self.loop_note = "an FMU has no one-call step (no fmus.fast_step, or its " \
-                "component converts ports): the FMUs step from Python"
-            return
-        self._board = Board([step.label for step in steps])
+        self.iterations = (0, 0)
+        """(cylinder steps of the arm coupling, steps that ended unconverged) since the
+        plant started: iterations per step = the first / the plant's step count."""
+        self._address = ctypes.addressof(c)
+        components = [master[name] for name in _ORDER]
+        self._board = Board([_label(component) for component in components])
+        self._errors: list[BaseException] = []
         loop = _Loop()
-        loop.step[:] = [step.function_address for step in steps]
-        loop.call[:] = [step.call_address for step in steps]
+        steps = []
+        for i, component in enumerate(components):
+            native = component.native_step
+            if native is not None:
+                loop.step[i], loop.call[i] = native.function_address, native.call_address
+            else:  # a component that converts its ports: its Python step, called back
+                callback = _STEP_CALLBACK(functools.partial(_python_step, component.step,
+                                                            self._errors))
+                self._keep.append(callback)
+                loop.step[i] = ctypes.cast(callback, ctypes.c_void_p).value
+            steps.append(native)
+            if i < 3 and component.rollback is not None:
+                loop.save[i], loop.restore[i], loop.rollback[i] = component.rollback
         loop.h, loop.board = self._step_s, self._board.address()
         self._loop, self._native_steps = loop, tuple(steps)
-        self._run = functools.partial(self._library.coupling_run, ctypes.c_void_p(address),
-                                      ctypes.c_void_p(ctypes.addressof(loop)))
 
     def temporary_folders(self) -> list[str]:
         """The board's folder (orchestrator.plants.native.board), if there is one."""
         return [] if self._board is None else [self._board.folder]
 
     def close(self) -> None:
-        """Remove the board; safe twice. The loop in C is gone with it: a later track() steps
-        the FMUs from Python (and so meets their own state, e.g. closed)."""
+        """Remove the board; safe twice. A later track() raises (the FMUs are closed)."""
         board, self._board = self._board, None
         if board is not None:
             board.close()
+
+    def state(self) -> dict[str, list[float]]:
+        """What the arm coupling carries from one step to the next, JSON-able: the last
+        step's cross-inertia forces (N) and the cylinders' step mobilities (s/kg)."""
+        return {"force_n": list(self._c.force), "mobility_s_kg": list(self._c.mobility)}
+
+    def set_state(self, state: dict[str, list[float]]) -> None:
+        """Continue from a state() (a resumed run); ValueError unless it holds 3 finite
+        forces and 3 finite mobilities >= 0."""
+        force, mobility = ([float(value) for value in state[key]]
+                           for key in ("force_n", "mobility_s_kg"))
+        if len(force) != 3 or len(mobility) != 3 or not all(
+                math.isfinite(value) for value in force + mobility) or min(mobility) < 0.0:
+            raise ValueError("an arm coupling state holds 3 finite forces and 3 mobilities")
+        self._c.force[:], self._c.mobility[:] = force, mobility
 
     def track(self, strokes: np.ndarray, rates: np.ndarray, accelerations: np.ndarray,
               n_columns: int, steps: int, pile_time: float) -> tuple[np.ndarray, np.ndarray,
@@ -200,8 +241,12 @@ class NativeCoupling:
         """The steps of one stroke reference (each (n, 3): m, m/s, m/s^2) from the plant's
         step count and Pile time (s): returns the signal rows (n, n_columns), the joint angles
         (n, 3) rad, and the step count and Pile time after them. An FMU's error propagates;
-        `clock` then holds the count and time reached, and the servos' filter states are
-        those of the last step the coupling computed (as in the Python loop)."""
+        `clock` then holds the count and time reached, and the servos' states are those of
+        the last step the loop computed."""
+        if self._board is None or any(
+                self._master[name].native_step is not step
+                for name, step in zip(_ORDER, self._native_steps, strict=True)):
+            raise RuntimeError("the step loop's FMUs are closed")
         c = self._c
         references = [np.ascontiguousarray(a, dtype=float) for a in (strokes, rates,
                                                                     accelerations)]
@@ -210,78 +255,74 @@ class NativeCoupling:
         if any(a.shape != (n, 3) for a in references):
             raise ValueError(f"stroke reference arrays must be (n, 3), got "
                              f"{[a.shape for a in references]}")
-        if n_columns != 34 + 3 * c.supplied:
+        if n_columns != COLUMNS + 3 * c.supplied:
             raise ValueError(f"{n_columns} signal columns; the coupling writes "
-                             f"{34 + 3 * c.supplied}")
+                             f"{COLUMNS + 3 * c.supplied}")
         rows, joints = np.empty((n, n_columns)), np.empty((n, 3))
         c.x_ref, c.v_ref, c.a_ref = (_pointer(a) for a in references)
         c.rows, c.joints, c.n, c.k, c.n_columns = _pointer(rows), _pointer(joints), n, 0, \
             n_columns
         for i, servo in enumerate(self._servos):
-            filtered, last = servo.state()
-            c.servo[i].filtered, c.servo[i].has_last = filtered, last is not None
-            c.servo[i].last = 0.0 if last is None else last
-        in_c = self._board is not None \
-            and all(self._master[name].native_step is step
-                    for name, step in zip(_ORDER, self._native_steps, strict=True))
-        run = self._run_in_c if in_c else self._run_in_python
-        steps, pile_time = run(n, steps, pile_time)
-        return rows, joints, steps, pile_time
-
-    def _run_in_c(self, n: int, steps: int, pile_time: float) -> tuple[int, float]:
-        """coupling.c's loop over the n steps: (step count, Pile time s) after them."""
+            _servo_state_into(servo, c.servo[i])
         loop = self._loop
         board = self._board  # a local: the step watchdog reads it from this frame (board.py)
         loop.steps, loop.pile_time = steps, pile_time
         try:
-            code = self._run()
+            code = self._library.coupling_run(ctypes.c_void_p(self._address),
+                                              ctypes.c_void_p(ctypes.addressof(loop)))
         finally:
             self._keep_state(loop.steps, loop.pile_time)
         if code == 1:
             raise self._not_finite()
         if code:
-            raise self._native_steps[(code >> 16) - 1].failure(code & 0xffff,
-                                                               board.layout.t)
-        return self.clock
-
-    def _run_in_python(self, n: int, steps: int, pile_time: float) -> tuple[int, float]:
-        """The n steps with the FMUs stepped from Python between the coupling's two calls."""
-        master, h = self._master, self._step_s
-        boom, stick, bucket, pile = (master[name].step for name in _ORDER)
-        before, after = self._before, self._after
-        try:
-            for _ in range(n):
-                if before():
-                    raise self._not_finite()
-                pile(pile_time, h)
-                pile_time += h
-                after()
-                t = steps * h
-                boom(t, h)
-                stick(t, h)
-                bucket(t, h)
-                steps += 1
-        finally:
-            self._keep_state(steps, pile_time)
-        return self.clock
+            index, call_code = (code >> 16) - 1, code & 0xffff
+            if self._errors:
+                raise self._errors.pop()
+            raise self._native_steps[index].failure(call_code, board.layout.t)
+        return rows, joints, loop.steps, loop.pile_time
 
     def _keep_state(self, steps: int, pile_time: float) -> None:
-        """The servos' filter states back from the struct, and the clock reached."""
+        """The servos' states back from the struct, and the clock reached."""
         for i, servo in enumerate(self._servos):
             state = self._c.servo[i]
-            servo.set_state(state.filtered, state.last if state.has_last else None)
+            if isinstance(servo, JointServo):
+                servo.set_state(state.filtered, state.last if state.has_last else None,
+                                state.held)
+            else:
+                servo.set_state(state.held)
         self.clock = steps, pile_time
+        self.iterations = self._loop.iterations, self._loop.unconverged
 
     def _not_finite(self) -> ValueError:
         return ValueError("a cylinder's stroke is not finite: " + ", ".join(
             f"{name} {self._master[name].outputs[0]!r}" for name in ("boom", "stick", "bucket")))
 
 
-LOOP_CODES.add(NativeCoupling._run_in_c.__code__)
+LOOP_CODES.add(NativeCoupling.track.__code__)
 
 
-def _servo_into(servo: JointServo, out: _Servo) -> None:
-    """JointServo's constants (its __slots__) into coupling.c's Servo."""
+def _label(component) -> str:
+    native = component.native_step
+    return native.label if native is not None else \
+        f"{component.name} ({component.description.modelName})"
+
+
+def _python_step(step, errors: list, call, t: float, h: float) -> int:
+    """A component's Python step called back from coupling.c: 0, or _CALLBACK_FAILED with the
+    exception kept in `errors` (ctypes would print and drop it)."""
+    try:
+        step(t, h)
+    except BaseException as error:  # noqa: BLE001 - re-raised by track() after the loop
+        errors.append(error)
+        return _CALLBACK_FAILED
+    return 0
+
+
+def _servo_into(servo: JointServo | LinearJointServo, out: _Servo) -> None:
+    """A servo's constants (its __slots__) into coupling.c's Servo."""
+    if isinstance(servo, LinearJointServo):
+        out.linear, out.kp, out.per_velocity = 1, servo._kp, servo._per_velocity
+        return
     for name in ("kp", "kf", "keep", "gain", "mass", "extend", "retract", "least",
                  "per_reserve_extend", "per_reserve_retract", "p_tank"):
         setattr(out, name, getattr(servo, f"_{name}"))
@@ -289,7 +330,12 @@ def _servo_into(servo: JointServo, out: _Servo) -> None:
     out.compensated = bool(servo._compensated)
 
 
-def _bound(function, address: int):
-    """function(struct) with the pointer converted once (ctypes' argument conversion costs
-    more than the call)."""
-    return functools.partial(function, ctypes.c_void_p(address))
+def _servo_state_into(servo: JointServo | LinearJointServo, out: _Servo) -> None:
+    """A servo's state() into coupling.c's Servo."""
+    if isinstance(servo, LinearJointServo):
+        (out.held,) = servo.state()
+        return
+    filtered, last, held = servo.state()
+    out.filtered, out.has_last = filtered, last is not None
+    out.last = 0.0 if last is None else last
+    out.held = held

@@ -1,35 +1,35 @@
 /*
- * The simulated excavator's per-step coupling in C: what orchestrator.plants.simulated_excavator
- * computes between the FMU steps of one communication step, operation for operation as its
- * Python loop (orchestrator.plants.coupling_loop.PythonCoupling) does, so both give the same
- * bits (IEEE doubles, no fused multiply-add, the same libm functions called):
+ * The simulated excavator's step loop (orchestrator.plants.simulated_excavator's module
+ * docstring), the one implementation: per communication step h from t_k
  *
- *   before_pile: the cylinders' strokes -> joint angles, moment arms, tip and bucket angle
- *     (orchestrator.plants.arm_coupling: the Hermite tables and the forward kinematics) -> the
- *     Pile's inputs;
- *   after_pile: the Pile's outputs -> cylinder loads (gravity, soil force), the arm's inertia
- *     (orchestrator.plants.arm_dynamics: the diagonal into mass_load, the rest into F_ext), the
- *     servos' spool commands (plant_models.servo.JointServo.command), the load-sensing pump's
- *     p_pump and p_LS (plant_models.supply.LoadSensingPump.law) -> the cylinders' inputs, and
- *     the step's row of signals and joint angles.
+ *   1. the cylinders' strokes -> joint angles, moment arms, tip and bucket angle
+ *      (orchestrator.plants.arm_coupling: Hermite tables, forward kinematics) -> the Pile's
+ *      inputs; the Pile steps;
+ *   2. the arm's loads at t_k: gravity (links, payload), the soil force through the Jacobian,
+ *      the velocity products, the mass matrix M(q) (orchestrator.plants.arm_dynamics); the
+ *      servos sample every servo_every steps (their own sample time, the command held between
+ *      samples); the load-sensing pump's law;
+ *   3. the arm coupling: each cylinder FMU integrates its own diagonal inertia M_ii / r_i^2 (its
+ *      mass_load input); the cross inertia sum_{j != i} M_ij qdd_j / r_i reaches it through
+ *      F_ext. With state rollback (implicit = 1) the step is iterated until that force agrees
+ *      with the joint accelerations the cylinders then produce over the step (mean over the
+ *      step, from their end velocities), to `tolerance` rad/s^2 of joint acceleration: a
+ *      Newton iteration on the three forces whose Jacobian is I + K, K_ij = M_ij s_j /
+ *      (h r_i r_j) (i != j), with each cylinder's step mobility s_j = -d v_end / d F_ext from
+ *      the secant of its last two iterates (h / (M_jj / r_j^2) before any); the FMUs are put
+ *      back into their states at t_k between iterates. Without rollback (implicit = 0) the
+ *      cross terms come from the planned joint accelerations (explicit; the scheme the
+ *      substitution of an FMU that cannot roll back falls back to).
  *
- * coupling_run runs a whole stroke reference: per step before_pile, the Pile's step, after_pile
- * and the three cylinders' steps, each FMU through its one-call step (fmus/fast_step, as
- * fmus.runs.FastSlave steps it from Python), in the Python loop's order and with its times. It
- * keeps a board of the FMU in a step and its t, which the step watchdog and a crash report
- * read to name the FMU (orchestrator.plants.native). Units: SI (m, rad, N, kg, Pa, s).
+ * Each FMU steps through a function pointer (fmus/fast_step's one-call step, or a callback into
+ * Python for a component that converts its ports); a board names the FMU in a step and its t
+ * for the step watchdog and a crash report (orchestrator.plants.native.board). Units: SI (m,
+ * rad, N, kg, Pa, s).
  */
 #include <math.h>
 #include <stddef.h>
 
 #define EXPORT __attribute__((visibility("default")))
-
-/* Python's x ** 2 calls libm's pow, which need not round as x * x does, and math.cos and
- * math.sin call cos and sin; gcc would turn a direct pow(x, 2.0) into x * x and a cos, sin pair
- * into sincos, so the calls go through pointers it cannot see through. */
-static double (*volatile power)(double, double) = pow;
-static double (*volatile cosine)(double) = cos;
-static double (*volatile sine)(double) = sin;
 
 typedef struct {
     const double *angle, *c1, *c2, *c3, *arm, *arm_slope; /* per interval (arm: per node) */
@@ -38,11 +38,14 @@ typedef struct {
 } Table;
 
 typedef struct {
+    long linear; /* 0: pressure-feedback servo (plant_models.servo), 1: linear servo */
     double kp, kf, keep, gain, mass, extend, retract, least, per_reserve_extend;
     double per_reserve_retract, metered[2], pull[2], p_tank, areas[2];
     long compensated;
+    double per_velocity; /* linear servo: spool command per m/s */
     double filtered, last; /* the filter's state; has_last = 0: no sample yet */
     long has_last;
+    double held;           /* the command held since the last sample */
 } Servo;
 
 typedef struct {
@@ -62,6 +65,12 @@ typedef struct {
     long supplied;              /* 1: the load-sensing pump feeds the sections */
     double full[3];             /* a section's flow at the full margin, m^3/s; < 0: off pump */
     double q_max, margin, ceiling;
+    long servo_every;           /* communication steps per servo sample */
+    long implicit;              /* 1: iterate the arm coupling with rollback */
+    long max_iterations;
+    double tolerance;           /* rad/s^2 of joint acceleration */
+    double force[3];            /* the last step's cross-inertia forces, N (the predictor) */
+    double mobility[3];         /* s/kg: the cylinders' step mobilities (0: none yet) */
     double pose[30]; /* scratch: ArmCoupling.kinematics of this step */
 } Coupling;
 
@@ -98,12 +107,12 @@ static void kinematics(Coupling *c, double x0, double x1, double x2) {
     joint(&c->table[2], x2, j2);
     phi2 = j0[0] + j1[0];
     phi3 = phi2 + j2[0];
-    c1 = cosine(j0[0]);
-    s1 = sine(j0[0]);
-    c2 = cosine(phi2);
-    s2 = sine(phi2);
-    c3 = cosine(phi3);
-    s3 = sine(phi3);
+    c1 = cos(j0[0]);
+    s1 = sin(j0[0]);
+    c2 = cos(phi2);
+    s2 = sin(phi2);
+    c3 = cos(phi3);
+    s3 = sin(phi3);
     stick_y = foot_y - l1 * c1;
     stick_z = foot_z + l1 * s1;
     pin_y = stick_y - l2 * c2;
@@ -172,11 +181,17 @@ static void inertia(const Coupling *c, double w0, double w1, double w2, double p
     out[6] = e1 + e2 + e3, out[7] = e2 + e3, out[8] = e3;
 }
 
-/* JointServo.command: the spool command in [-1, 1]; advances the filter. */
+/* The servo's law (plant_models.servo.JointServo.command; LinearJointServo.command for the
+ * linear servo): the spool command in [-1, 1]; advances the filter. */
 static double command(Servo *s, double x_ref, double v_ref, double a_ref, double x, double force) {
-    double excess = force - s->mass * a_ref, last = s->has_last ? s->last : excess;
-    double filtered = s->keep * s->filtered + s->gain * (excess - last), velocity, u, pulled;
-    double gain, reserve, candidate;
+    double excess, last, filtered, velocity, u, pulled, gain, reserve, candidate;
+    if (s->linear) {
+        u = (v_ref + s->kp * (x_ref - x)) * s->per_velocity;
+        return u > 1.0 ? 1.0 : (u < -1.0 ? -1.0 : u);
+    }
+    excess = force - s->mass * a_ref;
+    last = s->has_last ? s->last : excess;
+    filtered = s->keep * s->filtered + s->gain * (excess - last);
     s->filtered = filtered;
     s->last = excess;
     s->has_last = 1;
@@ -187,7 +202,7 @@ static double command(Servo *s, double x_ref, double v_ref, double a_ref, double
             gain = s->metered[0];
             if (pulled > 0.0) {
                 candidate = s->pull[0] * sqrt(pulled);
-                gain = candidate > gain ? candidate : gain; /* Python's max keeps the first */
+                gain = candidate > gain ? candidate : gain;
             }
         } else {
             pulled = force / s->areas[0] - s->p_tank;
@@ -232,75 +247,8 @@ static void supply(const Coupling *c, const double *u, const double *p_A, const 
     out[2] = sharing;
 }
 
-/* The step's kinematics from the cylinders' outputs; the Pile's tip inputs. 1 (nothing done)
- * when a stroke is not finite, where Python's int() raises. */
-EXPORT int coupling_before_pile(Coupling *c) {
-    if (!(isfinite(c->cylinder_out[0][0]) && isfinite(c->cylinder_out[1][0])
-          && isfinite(c->cylinder_out[2][0]))) {
-        return 1;
-    }
-    kinematics(c, c->cylinder_out[0][0], c->cylinder_out[1][0], c->cylinder_out[2][0]);
-    c->pile_in[0] = c->pose[3];
-    c->pile_in[1] = c->pose[4];
-    c->pile_in[2] = -c->pose[5]; /* the Pile's bucket_angle: the tip-to-pin line */
-    return 0;
-}
-
-/* Loads, inertia, commands and supply after the Pile's step; the row of step k; k += 1. */
-EXPORT void coupling_after_pile(Coupling *c) {
-    const double *pose = c->pose, *pile = c->pile_out;
-    const double *x_ref = c->x_ref + 3 * c->k, *v_ref = c->v_ref + 3 * c->k;
-    const double *a_ref = c->a_ref + 3 * c->k;
-    double *row = c->rows + c->n_columns * c->k, *joints = c->joints + 3 * c->k;
-    double x[3], v[3], p_A[3], p_B[3], f[3], e[3], r[3], w[3], a[3], d[3], u[3], l[3];
-    double m[9], pumped[3], mass = pile[0], force_y = pile[1], force_z = pile[2];
-    int i, column;
-    for (i = 0; i < 3; i++) {
-        const double *out = c->cylinder_out[i];
-        x[i] = out[0], v[i] = out[1], p_A[i] = out[2], p_B[i] = out[3], f[i] = out[4];
-        r[i] = pose[6 + i];
-        /* ArmCoupling.loads */
-        e[i] = (pose[9 + i] + mass * pose[12 + i]
-                - (force_y * pose[16 + 2 * i] - force_z * pose[15 + 2 * i])) / r[i];
-        w[i] = v[i] / r[i];
-        d[i] = pose[21 + i];
-        a[i] = (a_ref[i] - d[i] * power(v_ref[i] / r[i], 2.0)) / r[i];
-    }
-    inertia(c, w[0], w[1], w[2], mass, m);
-    /* m: M00, M11, M22, M01, M02, M12, h0, h1, h2 */
-    e[0] += (m[3] * a[1] + m[4] * a[2] + m[6]) / r[0] - m[0] * d[0] * w[0] * w[0] / (r[0] * r[0]);
-    e[1] += (m[3] * a[0] + m[5] * a[2] + m[7]) / r[1] - m[1] * d[1] * w[1] * w[1] / (r[1] * r[1]);
-    e[2] += (m[4] * a[0] + m[5] * a[1] + m[8]) / r[2] - m[2] * d[2] * w[2] * w[2] / (r[2] * r[2]);
-    for (i = 0; i < 3; i++) {
-        u[i] = command(&c->servo[i], x_ref[i], v_ref[i], a_ref[i], x[i], f[i]);
-        l[i] = m[i] / (r[i] * r[i]);
-        joints[i] = pose[i];
-    }
-    column = 0;
-    for (i = 0; i < 3; i++) {
-        row[column++] = x[i], row[column++] = v[i], row[column++] = p_A[i];
-        row[column++] = p_B[i], row[column++] = f[i], row[column++] = u[i];
-        row[column++] = e[i], row[column++] = l[i];
-    }
-    for (i = 0; i < 7; i++) row[column++] = pile[i];
-    row[column++] = pose[3], row[column++] = pose[4], row[column++] = pose[5];
-    if (c->supplied) {
-        supply(c, u, p_A, p_B, pumped);
-        row[column++] = pumped[0], row[column++] = pumped[1], row[column++] = pumped[2];
-        for (i = 0; i < 3; i++) {
-            c->cylinder_in[i][3] = pumped[0];
-            c->cylinder_in[i][4] = pumped[1];
-        }
-    }
-    for (i = 0; i < 3; i++) {
-        c->cylinder_in[i][0] = u[i];
-        c->cylinder_in[i][1] = e[i];
-        c->cylinder_in[i][2] = l[i];
-    }
-    c->k += 1;
-}
-
 typedef int (*StepFunction)(const void *call, double t, double h);
+typedef int (*StateFunction)(const void *rollback);
 
 typedef struct {
     volatile long which; /* the FMU in a step (0 boom, 1 stick, 2 bucket, 3 pile), -1: none */
@@ -308,16 +256,20 @@ typedef struct {
 } Board;
 
 typedef struct {
-    StepFunction step[4]; /* boom, stick, bucket, pile: fmi2_step or fmi3_step */
+    StepFunction step[4]; /* boom, stick, bucket, pile: fmi2_step, fmi3_step or a callback */
     const void *call[4];  /* their bound calls (fmus.fast_step.StepCall) */
+    StateFunction save[3], restore[3]; /* the cylinders' state rollback (implicit only) */
+    const void *rollback[3];           /* their bound states (fmus.fast_step.Rollback) */
     double h;             /* communication step, s */
     long steps;           /* the plant's step count: a cylinder steps from steps * h */
     double pile_time;     /* the Pile's clock, s (it steps once more per dump) */
     Board *board;
+    long iterations;      /* cylinder steps of the arm coupling since the counter was reset */
+    long unconverged;     /* steps that ended at max_iterations above the tolerance */
 } Loop;
 
-static long step_fmu(Loop *loop, int i, double t)
-{
+/* Error codes of coupling_run: (1 + FMU index) << 16 | the FMU call's code. */
+static long step_fmu(Loop *loop, int i, double t) {
     loop->board->t = t;
     loop->board->which = i;
     const int code = loop->step[i](loop->call[i], t, loop->h);
@@ -325,23 +277,180 @@ static long step_fmu(Loop *loop, int i, double t)
     return code ? ((long)(i + 1) << 16) | (code & 0xffff) : 0;
 }
 
-/* The steps k..n-1 of the stroke reference: 0 when all ran; 1 when a stroke is not finite
- * (nothing of that step done); (1 + FMU index) << 16 | its step's code when an FMU's step
- * failed (its t stays on the board). steps and pile_time advance as each step completes. */
-EXPORT long coupling_run(Coupling *c, Loop *loop)
-{
-    while (c->k < c->n) {
-        if (coupling_before_pile(c)) return 1;
-        long code = step_fmu(loop, 3, loop->pile_time);
-        if (code) return code;
-        loop->pile_time += loop->h;
-        coupling_after_pile(c);
-        const double t = (double)loop->steps * loop->h;
-        for (int i = 0; i < 3; i++) {
+static long state_call(Loop *loop, StateFunction *functions, int i, double t) {
+    loop->board->t = t;
+    loop->board->which = i;
+    const int code = functions[i](loop->rollback[i]);
+    loop->board->which = -1;
+    return code ? ((long)(i + 1) << 16) | (code & 0xffff) : 0;
+}
+
+/* x = A^-1 b for a 3 x 3 A (row-major) by Cramer's rule: I + K is diagonally dominant enough
+ * (|K_ij| <= coupling ratio < 1) that this is well conditioned. */
+static void solve3(const double *A, const double *b, double *x) {
+    double c0 = A[4] * A[8] - A[5] * A[7], c1 = A[5] * A[6] - A[3] * A[8];
+    double c2 = A[3] * A[7] - A[4] * A[6];
+    double det = A[0] * c0 + A[1] * c1 + A[2] * c2;
+    x[0] = (b[0] * c0 + A[1] * (b[2] * A[5] - b[1] * A[8]) + A[2] * (b[1] * A[7] - b[2] * A[4]))
+           / det;
+    x[1] = (A[0] * (b[1] * A[8] - b[2] * A[5]) + b[0] * c1 + A[2] * (b[2] * A[3] - b[1] * A[6]))
+           / det;
+    x[2] = (A[0] * (b[2] * A[4] - b[1] * A[7]) + A[1] * (b[1] * A[6] - b[2] * A[3]) + b[0] * c2)
+           / det;
+}
+
+/* One communication step k of the stroke reference (module docstring); 0, 1 when a stroke is
+ * not finite (nothing done), else an FMU's error code (step_fmu). */
+static long one_step(Coupling *c, Loop *loop) {
+    const double h = loop->h, t = (double)loop->steps * h;
+    const double *x_ref = c->x_ref + 3 * c->k, *v_ref = c->v_ref + 3 * c->k;
+    const double *a_ref = c->a_ref + 3 * c->k;
+    double *row = c->rows + c->n_columns * c->k, *joints = c->joints + 3 * c->k;
+    const double *pose = c->pose, *pile;
+    double x[3], v[3], p_A[3], p_B[3], f[3], base[3], r[3], w[3], d[3], u[3], l[3], m[9];
+    double cross[9], force[3], pumped[3] = {0.0, 0.0, 0.0}, mass, force_y, force_z, residual[3];
+    double last_force[3], last_v[3], error, jacobian[9], change[3];
+    long code;
+    int i, j, column, iteration;
+    if (!(isfinite(c->cylinder_out[0][0]) && isfinite(c->cylinder_out[1][0])
+          && isfinite(c->cylinder_out[2][0]))) {
+        return 1;
+    }
+    kinematics(c, c->cylinder_out[0][0], c->cylinder_out[1][0], c->cylinder_out[2][0]);
+    c->pile_in[0] = pose[3];
+    c->pile_in[1] = pose[4];
+    c->pile_in[2] = -pose[5]; /* the Pile's bucket_angle: the tip-to-pin line */
+    code = step_fmu(loop, 3, loop->pile_time);
+    if (code) return code;
+    loop->pile_time += h;
+    pile = c->pile_out;
+    mass = pile[0], force_y = pile[1], force_z = pile[2];
+    for (i = 0; i < 3; i++) {
+        const double *out = c->cylinder_out[i];
+        x[i] = out[0], v[i] = out[1], p_A[i] = out[2], p_B[i] = out[3], f[i] = out[4];
+        r[i] = pose[6 + i];
+        w[i] = v[i] / r[i];
+        d[i] = pose[21 + i];
+    }
+    inertia(c, w[0], w[1], w[2], mass, m);
+    /* m: M00, M11, M22, M01, M02, M12, h0, h1, h2 -> the full M (row-major) */
+    double M[9] = {m[0], m[3], m[4], m[3], m[1], m[5], m[4], m[5], m[2]};
+    for (i = 0; i < 3; i++) {
+        /* F_ext_i = [M qdd + h + G - J^T f]_i / r_i with qdd_j = (xdd_j - d_j w_j^2) / r_j:
+         * gravity, soil, velocity products and the d-terms here; M_ii xdd_i / r_i^2 is the
+         * FMU's mass_load, sum_{j != i} M_ij xdd_j / (r_i r_j) the cross force below. */
+        base[i] = (pose[9 + i] + mass * pose[12 + i]
+                   - (force_y * pose[16 + 2 * i] - force_z * pose[15 + 2 * i]) + m[6 + i]) / r[i];
+        for (j = 0; j < 3; j++) {
+            base[i] -= M[3 * i + j] * d[j] * w[j] * w[j] / (r[i] * r[j]);
+            cross[3 * i + j] = i == j ? 0.0 : M[3 * i + j] / (r[i] * r[j]);
+        }
+        l[i] = M[4 * i] / (r[i] * r[i]);
+    }
+    if (loop->steps % c->servo_every == 0) {
+        for (i = 0; i < 3; i++) {
+            c->servo[i].held = command(&c->servo[i], x_ref[i], v_ref[i], a_ref[i], x[i], f[i]);
+        }
+    }
+    for (i = 0; i < 3; i++) {
+        u[i] = c->servo[i].held;
+        joints[i] = pose[i];
+    }
+    if (c->supplied) {
+        supply(c, u, p_A, p_B, pumped);
+        for (i = 0; i < 3; i++) {
+            c->cylinder_in[i][3] = pumped[0];
+            c->cylinder_in[i][4] = pumped[1];
+        }
+    }
+    if (c->implicit) {
+        for (i = 0; i < 3; i++) {
+            force[i] = c->force[i];
+            if (!(c->mobility[i] > 0.0)) c->mobility[i] = h / l[i];
+            code = state_call(loop, loop->save, i, t);
+            if (code) return code;
+        }
+    } else { /* the planned stroke accelerations */
+        for (i = 0; i < 3; i++) {
+            force[i] = 0.0;
+            for (j = 0; j < 3; j++) force[i] += cross[3 * i + j] * a_ref[j];
+        }
+    }
+    for (iteration = 1;; iteration++) {
+        for (i = 0; i < 3; i++) {
+            c->cylinder_in[i][0] = u[i];
+            c->cylinder_in[i][1] = base[i] + force[i];
+            c->cylinder_in[i][2] = l[i];
+        }
+        for (i = 0; i < 3; i++) {
             code = step_fmu(loop, i, t);
             if (code) return code;
         }
-        loop->steps += 1;
+        loop->iterations += 1;
+        if (!c->implicit) break;
+        error = 0.0;
+        for (i = 0; i < 3; i++) {
+            residual[i] = -force[i];
+            for (j = 0; j < 3; j++) {
+                residual[i] += cross[3 * i + j] * (c->cylinder_out[j][1] - v[j]) / h;
+            }
+            /* as joint acceleration: torque r_i residual_i over the joint's own inertia */
+            const double joint = fabs(residual[i]) * r[i] / M[4 * i];
+            error = joint > error ? joint : error;
+        }
+        if (error <= c->tolerance || iteration >= c->max_iterations) {
+            if (error > c->tolerance) loop->unconverged += 1;
+            break;
+        }
+        for (i = 0; i < 3; i++) {
+            if (iteration > 1) { /* secant of this cylinder's own two iterates */
+                const double moved = force[i] - last_force[i];
+                const double slope = -(c->cylinder_out[i][1] - last_v[i]) / moved;
+                if (moved != 0.0 && slope > 0.0 && slope < 2.0 * h / l[i]) {
+                    c->mobility[i] = slope;
+                }
+            }
+            last_force[i] = force[i];
+            last_v[i] = c->cylinder_out[i][1];
+        }
+        for (i = 0; i < 3; i++) {
+            for (j = 0; j < 3; j++) {
+                jacobian[3 * i + j] = (i == j) + cross[3 * i + j] * c->mobility[j] / h;
+            }
+        }
+        solve3(jacobian, residual, change);
+        for (i = 0; i < 3; i++) {
+            force[i] += change[i];
+            code = state_call(loop, loop->restore, i, t);
+            if (code) return code;
+        }
+    }
+    for (i = 0; i < 3; i++) c->force[i] = force[i];
+    column = 0;
+    for (i = 0; i < 3; i++) {
+        row[column++] = x[i], row[column++] = v[i], row[column++] = p_A[i];
+        row[column++] = p_B[i], row[column++] = f[i], row[column++] = u[i];
+        row[column++] = base[i] + force[i], row[column++] = l[i];
+    }
+    for (i = 0; i < 7; i++) row[column++] = pile[i];
+    row[column++] = pose[3], row[column++] = pose[4], row[column++] = pose[5];
+    row[column++] = (double)iteration;
+    if (c->supplied) {
+        row[column++] = pumped[0], row[column++] = pumped[1], row[column++] = pumped[2];
+    }
+    c->k += 1;
+    loop->steps += 1;
+    return 0;
+}
+
+/* The steps k..n-1 of the stroke reference: 0 when all ran; 1 when a stroke is not finite
+ * (nothing of that step done); (1 + FMU index) << 16 | its call's code when an FMU's step or
+ * state call failed (its t stays on the board). steps and pile_time advance as each step
+ * completes. */
+EXPORT long coupling_run(Coupling *c, Loop *loop) {
+    while (c->k < c->n) {
+        const long code = one_step(c, loop);
+        if (code) return code;
     }
     return 0;
 }
@@ -357,5 +466,6 @@ EXPORT void coupling_offsets(long *out) {
     out[6] = (long)offsetof(Servo, compensated), out[7] = (long)offsetof(Servo, has_last);
     out[8] = (long)offsetof(Table, inv_dx);
     out[9] = (long)sizeof(Loop), out[10] = (long)offsetof(Loop, pile_time);
-    out[11] = (long)offsetof(Loop, board);
+    out[11] = (long)offsetof(Loop, board), out[12] = (long)offsetof(Coupling, force);
+    out[13] = (long)offsetof(Servo, held), out[14] = (long)offsetof(Loop, unconverged);
 }
