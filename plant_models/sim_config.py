@@ -65,7 +65,7 @@ class SimulatedExcavatorConfig:
     pile: FmuSpec
     communication_step_s: float = 0.01
     servo_sample_s: float = 0.01
-    coupling_tolerance_rad_s2: float = 1e-3
+    coupling_tolerance_rad_s2: float = 1e-2
     coupling_max_iterations: int = 8
     load_cell_noise_kg: float = 0.0
     seed: int = 0

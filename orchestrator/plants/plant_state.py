@@ -21,7 +21,8 @@ a restored instance starts from again) and everything computed from the configur
 The state is JSON-able (`resume_state`), format STATE_FORMAT::
 
     {"format": 2, "fmus": {component: base64 of the serialized FMU state},
-     "servos": {joint: [...]}, "arm_coupling": {"force_n": [3], "mobility_s_kg": [3]},
+     "servos": {joint: [...]},
+     "arm_coupling": {"force_n": [3], "previous_force_n": [3], "mobility_s_kg": [3]},
      "load_cell_rng": {...}, "steps": int, "pile_time_s": float,
      "start_pose_rad": [boom, stick, bucket]}
 

@@ -148,6 +148,9 @@ class Scenario(Section):
 
         return replace(default_config(self.machine.preset), **self.fmu_specs(), seed=self.seed,
                        communication_step_s=self.plant.communication_step_s,
+                       servo_sample_s=self.plant.servo_sample_s,
+                       coupling_tolerance_rad_s2=self.plant.coupling_tolerance_rad_s2,
+                       coupling_max_iterations=self.plant.coupling_max_iterations,
                        load_cell_noise_kg=self.plant.load_cell_noise_kg,
                        supply=self.plant.supply.pump())
 
@@ -214,6 +217,9 @@ def _plant_defaults(preset: str) -> dict[str, Any]:
     plant: dict[str, Any] = {
         "kind": "sim",
         "communication_step_s": config.communication_step_s,
+        "servo_sample_s": config.servo_sample_s,
+        "coupling_tolerance_rad_s2": config.coupling_tolerance_rad_s2,
+        "coupling_max_iterations": config.coupling_max_iterations,
         "load_cell_noise_kg": config.load_cell_noise_kg,
         "max_tracking_error_deg": _MAX_TRACKING_ERROR_DEG[preset],
     }

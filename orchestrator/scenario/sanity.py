@@ -41,6 +41,12 @@ def check_values(scenario: Any, source: str, check_fmus: bool,
     """The checks of the module docstring that need no plan (ScenarioError on the first).
     given: role -> the parameters the scenario itself sets (named first in a refusal)."""
     plant = scenario.plant
+    every = plant.servo_sample_s / plant.communication_step_s
+    if round(every) < 1 or abs(every - round(every)) > 1e-9 * every:
+        raise ScenarioError(source, "plant.servo_sample_s",
+                            f"{plant.servo_sample_s:g} s is not a whole number of communication "
+                            f"steps of {plant.communication_step_s:g} s (the servo samples on "
+                            "the step grid)")
     for role in CYLINDERS:
         spec = getattr(plant, role).spec()
         stroke_variable = spec.variable("x0")

@@ -10,6 +10,7 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
+    StrictInt,
     StrictStr,
     ValidationError,
     field_validator,
@@ -253,12 +254,18 @@ class PlantSection(Section):
     """kind "sim": the simulated excavator of the FMU tables; "lab": the lab excavator over CAN
     ([plant.lab], orchestrator.scenario.lab_section), whose emulated device uses the FMU tables
     and communication_step_s too. supply: the valves' oil supply (SupplySection).
+    servo_sample_s: the servos' sample time (s), a multiple of communication_step_s;
+    coupling_tolerance_rad_s2, coupling_max_iterations: the arm coupling's agreement per step
+    (joint acceleration, rad/s^2) and its most tries (plant_models.sim_config).
     max_tracking_error_deg: the largest |measured - reference|
     joint angle (deg) a period may reach; beyond it the campaign ends with termination "error"
     naming the joint, without reporting the period (orchestrator.campaign.loop)."""
 
     kind: StrictStr
     communication_step_s: Number = Field(gt=0.0)
+    servo_sample_s: Number = Field(gt=0.0)
+    coupling_tolerance_rad_s2: Number = Field(gt=0.0, le=1.0)
+    coupling_max_iterations: StrictInt = Field(ge=1, le=100)
     load_cell_noise_kg: Number = Field(ge=0.0)
     max_tracking_error_deg: Number = Field(gt=0.0)
     boom: FmuSection

@@ -56,6 +56,9 @@ def simulated_config(scenario):
     config = default_config(scenario.machine.preset)
     config = replace(config, **scenario.fmu_specs(), seed=scenario.seed,
                      communication_step_s=scenario.plant.communication_step_s,
+                     servo_sample_s=scenario.plant.servo_sample_s,
+                     coupling_tolerance_rad_s2=scenario.plant.coupling_tolerance_rad_s2,
+                     coupling_max_iterations=scenario.plant.coupling_max_iterations,
                      load_cell_noise_kg=scenario.plant.load_cell_noise_kg)
     return replace(config, start_pose_rad=tuple(float(q) for q in first_pose_rad(scenario)))
 

@@ -67,7 +67,8 @@ class _Coupling(ctypes.Structure):
         ("q_max", ctypes.c_double), ("margin", ctypes.c_double), ("ceiling", ctypes.c_double),
         ("servo_every", ctypes.c_long), ("implicit", ctypes.c_long),
         ("max_iterations", ctypes.c_long), ("tolerance", ctypes.c_double),
-        ("force", ctypes.c_double * 3), ("mobility", ctypes.c_double * 3),
+        ("force", ctypes.c_double * 3), ("previous_force", ctypes.c_double * 3),
+        ("mobility", ctypes.c_double * 3),
         ("pose", ctypes.c_double * 30),
     ]
 
@@ -140,7 +141,7 @@ class NativeCoupling:
     def __init__(self, master: Master, coupling: ArmCoupling, inertia: ArmInertia,
                  servos: Sequence[JointServo | LinearJointServo],
                  supply_parameters: tuple | None, step_s: float, servo_sample_s: float,
-                 tolerance_rad_s2: float = 1e-3, max_iterations: int = 8) -> None:
+                 tolerance_rad_s2: float = 1e-2, max_iterations: int = 8) -> None:
         library = _library()
         if isinstance(library, str):
             raise ValueError(f"the step loop cannot be built: {library}")
@@ -222,18 +223,22 @@ class NativeCoupling:
 
     def state(self) -> dict[str, list[float]]:
         """What the arm coupling carries from one step to the next, JSON-able: the last
-        step's cross-inertia forces (N) and the cylinders' step mobilities (s/kg)."""
-        return {"force_n": list(self._c.force), "mobility_s_kg": list(self._c.mobility)}
+        two steps' cross-inertia forces (N, the last first) and the cylinders' step
+        mobilities (s/kg)."""
+        return {"force_n": list(self._c.force), "previous_force_n": list(self._c.previous_force),
+                "mobility_s_kg": list(self._c.mobility)}
 
     def set_state(self, state: dict[str, list[float]]) -> None:
         """Continue from a state() (a resumed run); ValueError unless it holds 3 finite
         forces and 3 finite mobilities >= 0."""
-        force, mobility = ([float(value) for value in state[key]]
-                           for key in ("force_n", "mobility_s_kg"))
-        if len(force) != 3 or len(mobility) != 3 or not all(
-                math.isfinite(value) for value in force + mobility) or min(mobility) < 0.0:
+        force, previous, mobility = ([float(value) for value in state[key]] for key in (
+            "force_n", "previous_force_n", "mobility_s_kg"))
+        if not (len(force) == len(previous) == len(mobility) == 3) or not all(
+                math.isfinite(value) for value in force + previous + mobility) \
+                or min(mobility) < 0.0:
             raise ValueError("an arm coupling state holds 3 finite forces and 3 mobilities")
-        self._c.force[:], self._c.mobility[:] = force, mobility
+        self._c.force[:], self._c.previous_force[:], self._c.mobility[:] = \
+            force, previous, mobility
 
     def track(self, strokes: np.ndarray, rates: np.ndarray, accelerations: np.ndarray,
               n_columns: int, steps: int, pile_time: float) -> tuple[np.ndarray, np.ndarray,

@@ -70,6 +70,7 @@ typedef struct {
     long max_iterations;
     double tolerance;           /* rad/s^2 of joint acceleration */
     double force[3];            /* the last step's cross-inertia forces, N (the predictor) */
+    double previous_force[3];   /* the step's before, N */
     double mobility[3];         /* s/kg: the cylinders' step mobilities (0: none yet) */
     double pose[30]; /* scratch: ArmCoupling.kinematics of this step */
 } Coupling;
@@ -365,7 +366,9 @@ static long one_step(Coupling *c, Loop *loop) {
     }
     if (c->implicit) {
         for (i = 0; i < 3; i++) {
-            force[i] = c->force[i];
+            /* the last two steps' forces extrapolated: a smooth motion's forces change
+             * linearly over a step, so most steps then agree at the first try */
+            force[i] = 2.0 * c->force[i] - c->previous_force[i];
             if (!(c->mobility[i] > 0.0)) c->mobility[i] = h / l[i];
             code = state_call(loop, loop->save, i, t);
             if (code) return code;
@@ -395,7 +398,7 @@ static long one_step(Coupling *c, Loop *loop) {
                 residual[i] += cross[3 * i + j] * (c->cylinder_out[j][1] - v[j]) / h;
             }
             /* as joint acceleration: torque r_i residual_i over the joint's own inertia */
-            const double joint = fabs(residual[i]) * r[i] / M[4 * i];
+            const double joint = fabs(residual[i] * r[i]) / M[4 * i];
             error = joint > error ? joint : error;
         }
         if (error <= c->tolerance || iteration >= c->max_iterations) {
@@ -425,7 +428,10 @@ static long one_step(Coupling *c, Loop *loop) {
             if (code) return code;
         }
     }
-    for (i = 0; i < 3; i++) c->force[i] = force[i];
+    for (i = 0; i < 3; i++) {
+        c->previous_force[i] = c->implicit ? c->force[i] : force[i];
+        c->force[i] = force[i];
+    }
     column = 0;
     for (i = 0; i < 3; i++) {
         row[column++] = x[i], row[column++] = v[i], row[column++] = p_A[i];
