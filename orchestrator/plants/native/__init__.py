@@ -184,6 +184,7 @@ class NativeCoupling:
         """Why the arm coupling is explicit (coupling_note), None when it is implicit."""
         c.servo_every, c.implicit = every, self.note is None
         c.tolerance, c.max_iterations = float(tolerance_rad_s2), int(max_iterations)
+        c.mobility[:] = [-1.0] * 3  # none measured yet (coupling.c then takes a rigid one)
         self._c = c
         self.clock: tuple[int, float] = (0, 0.0)
         """(steps, Pile time s) where the last track() ended, an FMU error included."""
@@ -235,8 +236,9 @@ class NativeCoupling:
             "force_n", "previous_force_n", "mobility_s_kg"))
         if not (len(force) == len(previous) == len(mobility) == 3) or not all(
                 math.isfinite(value) for value in force + previous + mobility) \
-                or min(mobility) < 0.0:
-            raise ValueError("an arm coupling state holds 3 finite forces and 3 mobilities")
+                or any(value < 0.0 and value != -1.0 for value in mobility):
+            raise ValueError("an arm coupling state holds 3 finite forces and 3 mobilities "
+                             "(>= 0, or -1: none yet)")
         self._c.force[:], self._c.previous_force[:], self._c.mobility[:] = \
             force, previous, mobility
 

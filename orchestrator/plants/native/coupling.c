@@ -71,7 +71,7 @@ typedef struct {
     double tolerance;           /* rad/s^2 of joint acceleration */
     double force[3];            /* the last step's cross-inertia forces, N (the predictor) */
     double previous_force[3];   /* the step's before, N */
-    double mobility[3];         /* s/kg: the cylinders' step mobilities (0: none yet) */
+    double mobility[3];         /* s/kg: the cylinders' step mobilities (< 0: none yet) */
     double pose[30]; /* scratch: ArmCoupling.kinematics of this step */
 } Coupling;
 
@@ -369,7 +369,7 @@ static long one_step(Coupling *c, Loop *loop) {
             /* the last two steps' forces extrapolated: a smooth motion's forces change
              * linearly over a step, so most steps then agree at the first try */
             force[i] = 2.0 * c->force[i] - c->previous_force[i];
-            if (!(c->mobility[i] > 0.0)) c->mobility[i] = h / l[i];
+            if (!(c->mobility[i] >= 0.0)) c->mobility[i] = h / l[i]; /* none yet: rigid */
             code = state_call(loop, loop->save, i, t);
             if (code) return code;
         }
@@ -409,8 +409,10 @@ static long one_step(Coupling *c, Loop *loop) {
             if (iteration > 1) { /* secant of this cylinder's own two iterates */
                 const double moved = force[i] - last_force[i];
                 const double slope = -(c->cylinder_out[i][1] - last_v[i]) / moved;
-                if (moved != 0.0 && slope > 0.0 && slope < 2.0 * h / l[i]) {
-                    c->mobility[i] = slope;
+                /* 0: a motion the load does not move (an ideal actuator) */
+                if (moved != 0.0 && isfinite(slope)) {
+                    c->mobility[i] = slope < 0.0 ? 0.0 : (slope > 2.0 * h / l[i] ? 2.0 * h / l[i]
+                                                                                 : slope);
                 }
             }
             last_force[i] = force[i];
