@@ -81,7 +81,10 @@ def test_the_lab_log_has_the_simulated_runs_channels_and_the_bus_statistics(hil)
         "bus.bad_checksums", "bus.send_jitter_s", "bus.feedback_latency_s"]
     boom = log.channels["/cylinder/boom"]
     pressure = boom.fields["p_A_Pa"]
-    assert np.all((pressure >= 0.0) & (pressure <= 2.2e6))  # 20 bar supply, 22 bar relief
+    # 20 bar supply; the port relief cracks at 22 bar and passes k_relief = 5e-11 m^3/(s Pa) per
+    # Pa above it: the pump's whole 1.4 L/min through it sits 4.7 bar higher (the arm's inertia,
+    # now fully coupled, pushes the boom past the cracking pressure by up to 1.7 bar).
+    assert np.all((pressure >= 0.0) & (pressure <= 2.2e6 + 1.4 / 60000 / 5e-11))
     joints = log.channels["/joints"]
     assert joints.log_time_ns.size == bus.log_time_ns.size  # one bus row per feedback row
 
