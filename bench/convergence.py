@@ -113,7 +113,8 @@ def main(argv: list[str] | None = None) -> int:
             pressure = np.max(np.abs(a["pressure"][:n] - b["pressure"][:n]))
             order = ""
             if previous is not None and mass > 0 and previous[0] > 0:
-                order = f", observed order {math.log(previous[0] / mass) / math.log(previous[1]):.2f}"
+                observed = math.log(previous[0] / mass) / math.log(previous[1])
+                order = f", observed order {observed:.2f}"
             print(f"  {1e3 * a['step']:g} -> {1e3 * b['step']:g} ms: mass {mass:.3f} kg, "
                   f"tracking RMS {rms:.3f} deg, peak pressure {pressure:.1f} bar{order}")
             previous = (mass, a["step"] / b["step"])

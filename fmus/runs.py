@@ -1,13 +1,12 @@
 """Run one FMU over an input series under fmpy (fast low-level path) or under the ecos master.
 
-run_fmpy and fmus.ecos_runs.run_ecospy do the same thing, so their results can be compared value
-for value:
-start values (parameters, and the inputs' first samples) are set before initialization; then,
-for k = 0..n-1, the inputs' k-th samples are set and the FMU steps from t_k = k*h to t_k + h.
-Outputs come back as arrays of shape (n + 1,): sample 0 after initialization, sample k after
-step k. Only Real (FMI 3.0: Float64) inputs and outputs are exchanged; start values may be of
-any real, integer or boolean type. FastSlave and run_fmpy take FMI 2.0 and FMI 3.0
-co-simulation FMUs alike.
+run_fmpy and fmus.ecos_runs.run_ecospy do the same thing, comparable value for value: start
+values (parameters, the inputs' first samples) are set before initialization; then, for k =
+0..n-1, the inputs' k-th samples are set and the FMU steps from t_k = k*h to t_k + h. Outputs
+are arrays (n + 1,): sample 0 after initialization, sample k after step k. Only Real (FMI 3.0:
+Float64) inputs and outputs are exchanged; start values may be real, integer or boolean.
+FastSlave and run_fmpy take FMI 2.0 and FMI 3.0 co-simulation FMUs alike; FastSlave's one-call
+step carries the FMU's state rollback where it has one (NativeStep, fmus/fast_step).
 """
 
 from __future__ import annotations
@@ -73,9 +72,8 @@ def _typed_start_values(description, start_values: Mapping[str, float]) -> dict:
 
 # The code objects of FastSlave's step functions, one per instance, each named after its
 # instance ("step[boom (HydraulicCylinder)]"): the step watchdog finds a stuck step by its code
-# object, and a native crash's faulthandler dump (orchestrator.campaign.isolation), which
-# shows code names but no variables, names the FMU that crashed. Weak: freed instances leave
-# nothing behind.
+# object, and a native crash's faulthandler dump (orchestrator.campaign.isolation; code names,
+# no variables) names the FMU that crashed. Weak: freed instances leave nothing behind.
 STEP_CODES: weakref.WeakSet = weakref.WeakSet()
 _SERIALS = itertools.count()  # one number per FastSlave construction
 STEP_NAME = re.compile(r"\bstep\[(?P<label>[^\]]*)\]")  # a step's code name in a dump
@@ -92,10 +90,8 @@ class NativeStep:
     call_address: int
     label: str
     failure: Callable[[int, float], RuntimeError]
-    save_address: int | None = None
-    """rollback.c's fmu_save_state and fmu_restore_state and the bound Rollback
-    (FastSlave.rollback), None where the FMU cannot get and set its state."""
-    restore_address: int | None = None
+    save_address: int | None = None  # rollback.c's save and restore, the bound Rollback
+    restore_address: int | None = None  # (None: the FMU cannot get and set its state)
     rollback_address: int | None = None
 
 
@@ -105,8 +101,7 @@ def _one_call_failure(label: str, calls: tuple[str, str, str], last_error: list,
     if failed == 4:  # rollback.c: 5 get state, 6 set state
         return RuntimeError(f"{label} asked to terminate the simulation at t = {t}")
     said = f": {last_error[0]}" if last_error[0] else ""
-    name = calls[failed - 1] if 1 <= failed <= len(calls) else f"call {failed}"
-    return RuntimeError(f"{label}: {name} failed at t = {t}{said}")
+    return RuntimeError(f"{label}: {calls[failed - 1]} failed at t = {t}{said}")
 
 
 class FastSlave:
@@ -222,24 +217,10 @@ class FastSlave:
                 ctypes.addressof(vr_out), len(outputs), self._out.ctypes.data)
             one_call = fast.fmi2_step if version == 2 else fast.fmi3_step
             bound = ctypes.c_void_p(ctypes.addressof(self._fast))
-            state_names = ("fmi2GetFMUstate", "fmi2SetFMUstate") if version == 2 else \
-                ("fmi3GetFMUState", "fmi3SetFMUState")
-            failure = functools.partial(_one_call_failure, label,
-                                        (set_name, step_name, get_name, "", *state_names),
-                                        last_error)
-            rollback = {}
-            if self.can_roll_back:
-                get_state, set_state = (dll._FuncPtr((n, dll)) for n in state_names)
-                self.rollback = fast_step.Rollback(
-                    self.slave.component, ctypes.cast(get_state, ctypes.c_void_p).value,
-                    ctypes.cast(set_state, ctypes.c_void_p).value, None)
-                self._free_state = dll._FuncPtr((
-                    "fmi2FreeFMUstate" if version == 2 else "fmi3FreeFMUState", dll))
-                rollback = {"save_address": ctypes.cast(fast.fmu_save_state,
-                                                        ctypes.c_void_p).value,
-                            "restore_address": ctypes.cast(fast.fmu_restore_state,
-                                                           ctypes.c_void_p).value,
-                            "rollback_address": ctypes.addressof(self.rollback)}
+            failure = functools.partial(_one_call_failure, label, (
+                set_name, step_name, get_name, "", *fast_step.STATE_CALLS[version]), last_error)
+            self.rollback, rollback = fast_step.bind_rollback(dll, self.slave.component, version) \
+                if self.can_roll_back else (None, {})
             self.native_step = NativeStep(ctypes.cast(one_call, ctypes.c_void_p).value,
                                           bound.value, label, failure, **rollback)
 
@@ -349,16 +330,12 @@ class FastSlave:
         return np.array(getter(references))
 
     @property
-    def can_roll_back(self) -> bool:
-        """Whether the FMU declares that it can get and set its state (canGetAndSetFMUstate):
-        what a master needs to repeat a step."""
+    def can_roll_back(self) -> bool:  # canGetAndSetFMUstate: what repeating a step needs
         return bool(self.description.coSimulation.canGetAndSetFMUstate)
 
     @property
-    def can_serialize_state(self) -> bool:
-        """Whether the FMU declares that it can get, set and serialize its state."""
-        cs = self.description.coSimulation
-        return bool(cs.canGetAndSetFMUstate and cs.canSerializeFMUstate)
+    def can_serialize_state(self) -> bool:  # the FMU can get, set and serialize its state
+        return bool(self.can_roll_back and self.description.coSimulation.canSerializeFMUstate)
 
     def serialize_state(self) -> bytes:
         """The instance's whole state as the FMU serializes it (fmi2SerializeFMUstate /
@@ -373,9 +350,8 @@ class FastSlave:
         """Put the instance into a state from serialize_state. The FMU checks the bytes first
         (ours refuse another build's, a truncated or a corrupted state, and leave the instance
         as it was): fmpy's exception on refusal; the FMU logs why."""
-        deserialize = self.slave.deSerializeFMUstate if self.fmi_version == 2 \
-            else self.slave.deserializeFMUState
-        state = deserialize(bytes(data))
+        state = (self.slave.deSerializeFMUstate if self.fmi_version == 2
+                 else self.slave.deserializeFMUState)(bytes(data))
         try:
             self.slave.setFMUState(state)
         finally:
@@ -386,11 +362,7 @@ class FastSlave:
         """Terminate and free the instance, unload the binary, remove the unzip folder."""
         self.native_step = None  # nothing may step the freed instance from C
         if self.slave is not None:
-            rollback = getattr(self, "rollback", None)
-            if rollback is not None and rollback.state:
-                self._free_state(ctypes.c_void_p(self.slave.component),
-                                 ctypes.byref(ctypes.c_void_p(rollback.state)))
-                rollback.state = None
+            fast_step.free_rollback(getattr(self, "rollback", None))  # before the instance
             try:
                 self.slave.terminate()
             except Exception:  # an instance in error state must still be freed

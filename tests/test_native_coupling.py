@@ -2,8 +2,8 @@
 implementation: its arm coupling makes the arm's equation of motion hold on the logged signals
 (and an explicit coupling, the cross inertia from the plan, does not); its answer converges as
 the step halves; an FMU that cannot roll back its state gets the explicit coupling and the plant
-says so; a linear servo runs in it; an FMU failing in it is named; its board names the FMU in a step; the library
-builds byte-reproducibly."""
+says so; a linear servo runs in it; an FMU failing in it is named; its board names the FMU in
+a step; the library builds byte-reproducibly."""
 
 from __future__ import annotations
 
@@ -174,3 +174,25 @@ def test_a_closed_loop_or_plant_is_never_stepped():
         assert steps == 3 and np.isfinite(rows).all()
     with pytest.raises(RuntimeError, match="closed"):
         loop.track(strokes, still, still, 38, 3, 0.03)
+
+
+def test_the_roles_say_how_the_arm_is_coupled_into_them():
+    from types import SimpleNamespace
+
+    from orchestrator.plants.native import IMPLICIT, arm_coupling_notes
+
+    def described(rollback: bool):
+        return SimpleNamespace(coSimulation=SimpleNamespace(canGetAndSetFMUstate=rollback))
+
+    assert arm_coupling_notes({r: described(True) for r in ("boom", "stick", "bucket")}) == {
+        r: IMPLICIT for r in ("boom", "stick", "bucket")}
+    notes = arm_coupling_notes({"boom": described(True), "stick": described(False),
+                                "bucket": described(True)})
+    assert notes["stick"].startswith("explicit: this FMU cannot get and set its state")
+    assert notes["boom"].startswith("explicit: stick FMU cannot") == notes["bucket"].startswith(
+        "explicit: stick FMU cannot") is True
+    from orchestrator.cli.scenario_show import plant_roles
+
+    roles = plant_roles(load_scenario(PAPER, ["periods=1"]))
+    assert {roles[r]["arm_coupling"] for r in ("boom", "stick", "bucket")} == {IMPLICIT}
+    assert "arm_coupling" not in roles["pile"]

@@ -30,9 +30,9 @@ PAPER = ROOT / "scenarios" / "paper-2020.toml"
 
 @pytest.mark.parametrize(("overrides", "field", "reason"), [
     (["target_mass_kg=95"], "target_mass_kg",
-     "95 kg is more than the bucket holds: density x capacity = 1600 kg/m^3 x 0.046612 m^3 = "
-     "74.58 kg"),
-    (["plant.pile.parameters.density=500"], "target_mass_kg", "= 23.31 kg"),
+     "95 kg is more than the bucket holds: density x capacity = 1600 kg/m^3 x 0.046284 m^3 = "
+     "74.05 kg"),
+    (["plant.pile.parameters.density=500"], "target_mass_kg", "= 23.14 kg"),
     (["adaptation.z_D0_m=0.05"], "adaptation.z_D0_m",
      "0.05 m is not below the ground at y_D0_m = -9 m (z = 0 m)"),
     (["plant.pile.parameters.heap_height=0.5", "plant.pile.parameters.heap_center_y=-9",
@@ -61,8 +61,10 @@ PAPER = ROOT / "scenarios" / "paper-2020.toml"
      "Pile does not initialise with these parameters: z_floor must lie below z_surface0"),
     (["plant.pile.parameters.density=1.6e12"], "plant.pile.parameters.density",
      "value of 'density' lies outside its range [100, 10000]"),  # a bucket of 9e10 kg
-    (["plant.communication_step_s=0.05"], "plant.stick",
+    (["plant.communication_step_s=0.05", "plant.servo_sample_s=0.05"], "plant.stick",
      "cannot damp the hydraulic mode"),
+    (["plant.communication_step_s=0.003"], "plant.servo_sample_s",
+     "0.01 s is not a whole number of communication steps of 0.003 s"),
 ])
 def test_nonsense_is_refused_at_load_naming_the_quantity(overrides, field, reason):
     with pytest.raises(ScenarioError) as refused:

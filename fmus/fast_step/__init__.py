@@ -60,3 +60,32 @@ def library() -> ctypes.CDLL | None:
         getattr(loaded, name).argtypes = [ctypes.c_void_p]
         getattr(loaded, name).restype = ctypes.c_int
     return loaded
+
+
+STATE_CALLS = {2: ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate"),
+               3: ("fmi3GetFMUState", "fmi3SetFMUState", "fmi3FreeFMUState")}
+
+
+def bind_rollback(dll, component: int, version: int) -> tuple[Rollback, dict[str, int]]:
+    """An FMU instance's Rollback (rollback.c) through its own fmi2GetFMUstate /
+    fmi2SetFMUstate (FMI 3.0: fmi3GetFMUState / fmi3SetFMUState) in the loaded binary `dll`,
+    and the NativeStep fields that hand it to a loop in C (save_address, restore_address,
+    rollback_address). Keep the Rollback while the instance lives; free_rollback it before
+    the instance is freed."""
+    get_state, set_state, free_state = (dll._FuncPtr((n, dll)) for n in STATE_CALLS[version])
+    loaded = library()
+    rollback = Rollback(component, ctypes.cast(get_state, ctypes.c_void_p).value,
+                        ctypes.cast(set_state, ctypes.c_void_p).value, None)
+    rollback.free_state = free_state  # a ctypes Structure takes extra attributes
+    return rollback, {
+        "save_address": ctypes.cast(loaded.fmu_save_state, ctypes.c_void_p).value,
+        "restore_address": ctypes.cast(loaded.fmu_restore_state, ctypes.c_void_p).value,
+        "rollback_address": ctypes.addressof(rollback)}
+
+
+def free_rollback(rollback: Rollback | None) -> None:
+    """Free the FMU state block a Rollback holds (the FMU's own free function); safe twice."""
+    if rollback is not None and rollback.state:
+        rollback.free_state(ctypes.c_void_p(rollback.instance),
+                            ctypes.byref(ctypes.c_void_p(rollback.state)))
+        rollback.state = None

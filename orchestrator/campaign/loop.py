@@ -92,6 +92,20 @@ def build_plant(scenario: Scenario) -> Plant:
     return SimulatedExcavator(scenario.sim_config())
 
 
+def arm_coupling_of(scenario: Scenario) -> dict[str, str]:
+    """cylinder role -> how the simulated plant's step loop couples the arm's cross inertia
+    into it (orchestrator.plants.native.arm_coupling_notes); {} for another plant kind."""
+    if scenario.plant.kind != "sim":
+        return {}
+    from fmus.descriptions import model_description
+    from orchestrator.plants.master import fmu_path
+    from orchestrator.plants.native import arm_coupling_notes
+
+    specs = scenario.fmu_specs()
+    return arm_coupling_notes({role: model_description(fmu_path(specs[role], role))
+                               for role in ("boom", "stick", "bucket")})
+
+
 def open_run_log(scenario: Scenario, log_path: str | Path, overwrite: bool = False):
     """The MCAP run log of a campaign (orchestrator.runlog.writer.RunLog)."""
     from orchestrator.plants.master import derivation_notes, fmu_path
@@ -106,7 +120,8 @@ def open_run_log(scenario: Scenario, log_path: str | Path, overwrite: bool = Fal
                   fmus=fmus, plant_kind=scenario.plant.kind,
                   target_mass_kg=scenario.target_mass_kg, geometry=scenario.geometry(),
                   sample_rate_hz=scenario.log.sample_rate_hz, overrides=scenario.overrides,
-                  overwrite=overwrite, derived=derived, background=True)
+                  overwrite=overwrite, derived=derived, background=True,
+                  arm_coupling=arm_coupling_of(scenario))
 
 
 def scenario_source_text(scenario: Scenario) -> str:

@@ -89,7 +89,9 @@ def role_lines(data: dict[str, Any]) -> list[str]:
         derived = table.get("derived") or {}
         lines.append(f"  {role}: {fmu} (sha256 {digest}), "
                      f"{count(len(table.get('parameters', {})), 'parameter')} set"
-                     + "".join(f"; {out} derived by the master" for out in derived))
+                     + "".join(f"; {out} derived by the master" for out in derived)
+                     + ("; arm coupling explicit" if str(table.get("arm_coupling", "")
+                                                        ).startswith("explicit") else ""))
     if data["overrides"]:
         lines.append("  --set " + " --set ".join(data["overrides"]))
     return lines

@@ -39,9 +39,9 @@ the Pile's outputs after its step to the tip at t_k, and the inputs (u, F_ext) h
 Signals: "<joint>.x, .v, .p_A, .p_B, .F" (cylinder outputs by role), "<joint>.u, .F_ext,
 .mass_load" (inputs),
 "pile.<output role>", "tip.y", "tip.z", "tip.bucket_angle", "coupling.iterations" (the tries
-of the step from t_k: 1 when the first agreed, or in an explicit coupling); with a load-sensing supply also
-"supply.p_pump", "supply.p_LS" (Pa) and "supply.sharing" (the flow-sharing factor, 1: the pump
-keeps up).
+of the step from t_k: 1 when the first agreed, or in an explicit coupling); with a
+load-sensing supply also "supply.p_pump", "supply.p_LS" (Pa) and "supply.sharing" (the
+flow-sharing factor, 1: the pump keeps up).
 """
 
 from __future__ import annotations

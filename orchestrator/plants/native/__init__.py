@@ -115,6 +115,22 @@ def _library() -> ctypes.CDLL | str:
     return library
 
 
+IMPLICIT = "implicit: iterated per step with the cylinders' state rollback"
+
+
+def arm_coupling_notes(descriptions: dict[str, object]) -> dict[str, str]:
+    """cylinder role -> how the step loop couples the arm's cross inertia into it (IMPLICIT, or
+    why it is explicit), from the roles' FMU model descriptions (boom, stick, bucket): the
+    coupling is implicit only when every cylinder FMU can get and set its state."""
+    lacking = [role for role in _ORDER[:3]
+               if not descriptions[role].coSimulation.canGetAndSetFMUstate]
+    if not lacking:
+        return {role: IMPLICIT for role in _ORDER[:3]}
+    return {role: f"explicit: {'this FMU' if role in lacking else ', '.join(lacking) + ' FMU'} "
+            "cannot get and set its state (canGetAndSetFMUstate), so the arm's cross inertia "
+            "comes from the planned accelerations" for role in _ORDER[:3]}
+
+
 def coupling_note(master: Master) -> str | None:
     """Why the arm coupling of `master`'s cylinders is explicit (one line naming the roles),
     None when it is implicit (every cylinder FMU can roll back its state)."""
