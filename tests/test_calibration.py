@@ -48,11 +48,11 @@ def test_committed_scenario_scores_as_the_docstring_says():
     score, records = cal.score_scenario(cal.load_scenario(cal.SCENARIO))
     assert score.termination == "periods" and len(records) == 20
     assert score.first_mass_kg == pytest.approx(8.67, abs=0.005)
-    assert score.misses == 3 and records[1]["mass_kg"] == pytest.approx(11.8, abs=0.05)
+    assert score.misses == 3 and records[1]["mass_kg"] == pytest.approx(11.74, abs=0.05)
     assert score.reset_periods == [13]
     assert (score.within_3, score.counted) == (14, 18)
     assert (score.reset, score.full, score.undug) == (0, 0, 0)
-    assert score.total == pytest.approx(3.1602, abs=5e-4)
+    assert score.total == pytest.approx(3.1605, abs=5e-4)
     doc = cal.__doc__
     assert "period 1 8.67 kg, 3 misses (periods 2, 5, 17), reset period 13" in doc
     assert "14 of 18 counted periods within +-3 kg" in doc
@@ -61,7 +61,7 @@ def test_committed_scenario_scores_as_the_docstring_says():
 
 def test_committed_values_are_the_start_point_inside_the_bounds():
     x0 = cal.start_point(cal.SCENARIO, [])
-    assert x0.tolist() == [0.1192, 0.6314, 0.9574, -0.1104, 3.0094, 0.017072, 0.7890956, 0.046284]
+    assert x0.tolist() == [0.1192, 0.6314, 0.9574, -0.1104, 3.0094, 0.017072, 0.7922444, 0.046284]
     assert all(p.low <= v <= p.high for p, v in zip(cal.PARAMETERS, x0, strict=True))
     assert cal.rounded(x0).tolist() == x0.tolist()  # the search evaluates them unchanged
 
