@@ -15,7 +15,9 @@ paper scenario with full logging at every step, then prints:
   joint, over the periods it is asked for (--residual-periods, default 1 and 5: the residual
   costs a few seconds per period at 1 ms);
 - the arm coupling's tries per step (the coupling.iterations signal) and the largest joint
-  accelerations measured against the planned limit (second differences of /joints).
+  accelerations measured against the planned limit (second differences of /joints), with the
+  samples beyond 1.5 times it sorted by what lies within 0.3 s: a cavitation void in a
+  cylinder chamber, else soil contact, else neither.
 """
 
 from __future__ import annotations
@@ -43,6 +45,8 @@ from orchestrator.scenario import load_scenario  # noqa: E402
 
 SCENARIO = ROOT / "scenarios" / "paper-2020.toml"
 JOINTS = ("boom", "stick", "bucket")
+LIMIT_RAD_S2 = math.radians(60.0)  # Table 1's joint acceleration limit
+VOID_WINDOW_S = 0.3  # s either side of a sample in which a void or soil contact counts
 
 
 def run(step_s: float, tolerance: float | None, periods: int, folder: Path) -> dict:
@@ -56,7 +60,7 @@ def run(step_s: float, tolerance: float | None, periods: int, folder: Path) -> d
     result = run_campaign(scenario, log_path=log, overwrite=True)
     if result.termination not in ("periods", "workspace"):
         raise SystemExit(f"step {step_s} s: {result.message}")
-    topics = (*LOGGED_TOPICS, "/signals/coupling")
+    topics = (*LOGGED_TOPICS, "/signals/coupling")  # /pile/bucket is among them
     logged = read_run(log, topics=topics)
     pressures = []
     for k in range(1, len(result.records) + 1):
@@ -64,15 +68,30 @@ def run(step_s: float, tolerance: float | None, periods: int, folder: Path) -> d
                               for f in ("p_A_Pa", "p_B_Pa")) / 1e5 for j in JOINTS])
     tries = logged.channels["/signals/coupling"].fields["values"].ravel()
     joints = logged.channels["/joints"]
-    accelerations = []
+    accelerations, causes = [], np.zeros((3, 3), dtype=int)
+    window = int(round(VOID_WINDOW_S / step_s))
     for k in range(1, len(result.records) + 1):
         q = np.column_stack([joints.of_period(k)[f"measured_{j}_rad"] for j in JOINTS])
-        accelerations.append(np.max(np.abs(np.diff(q, 2, axis=0)), axis=0) / step_s**2)
+        qdd = np.abs(np.diff(q, 2, axis=0)) / step_s**2
+        accelerations.append(np.max(qdd, axis=0))
+        # Where the samples beyond 1.5 x the planned limit lie: near a cavitation void (a
+        # chamber at 0 Pa) of any cylinder, else near soil contact, else elsewhere.
+        cylinders = [logged.channels[f"/cylinder/{j}"].of_period(k) for j in JOINTS]
+        void = np.any([(c["p_A_Pa"] <= 0.0) | (c["p_B_Pa"] <= 0.0) for c in cylinders], axis=0)
+        soil = logged.channels["/pile/bucket"].of_period(k)
+        contact = np.hypot(soil["F_y_N"], soil["F_z_N"]) > 0.0
+        near_void, near_soil = (np.convolve(flag, np.ones(2 * window + 1), "same") > 0
+                                for flag in (void, contact))
+        for j in range(3):
+            high = np.nonzero(qdd[:, j] > 1.5 * LIMIT_RAD_S2)[0] + 1
+            causes[j] += (int(near_void[high].sum()), int((near_soil[high] & ~near_void[high])
+                                                          .sum()),
+                          int((~near_soil[high] & ~near_void[high]).sum()))
     return {"step": step_s, "tolerance": tolerance, "scenario": scenario, "log": log,
             "mass": np.array([r["mass_kg"] for r in result.records]),
             "rms": np.array([r["tracking_rms_deg"] for r in result.records]),
             "pressure": np.array(pressures), "tries": float(np.mean(tries)),
-            "acceleration": np.degrees(np.array(accelerations))}
+            "acceleration": np.degrees(np.array(accelerations)), "causes": causes}
 
 
 def residual(entry: dict, periods: list[int]):
@@ -134,7 +153,10 @@ def main(argv: list[str] | None = None) -> int:
               "planned limit 60):")
         for r in runs:
             print(f"  {1e3 * r['step']:g} ms: " + "/".join(
-                f"{a:.0f}" for a in r["acceleration"].max(axis=0)))
+                f"{a:.0f}" for a in r["acceleration"].max(axis=0)) + "; samples beyond 1.5 x "
+                "the limit (within 0.3 s of a cavitation void, else of soil contact, else "
+                "neither): " + ", ".join(f"{j} {'/'.join(str(n) for n in c)}"
+                                         for j, c in zip(JOINTS, r["causes"], strict=True)))
         print(f"equation-of-motion residual over periods {args.residual_periods}, "
               "boom/stick/bucket, of the RMS cylinder force:")
         for r in runs:
