@@ -15,17 +15,18 @@ dA_k/dphi_k = -l_k e_k). In the absolute angles the mass matrix N has
 N_ab = sum_links m (dc/dphi_a . dc/dphi_b) + I_a [a = b]; joint angles turn every later link,
 phi = T q with T lower triangular ones, so M = T^T N T and joint torques are T^T of absolute ones.
 
-How the coupling uses it (orchestrator.plants.simulated_excavator): each cylinder FMU integrates
-its own diagonal term, M_ii / r_i^2 reflected onto the rod (its `mass_load` input, implicit in
-the FMU's substeps, so the stiff part stays stable); the rest goes into F_ext at the step's
-start: the velocity-product torques / r_i and -M_ii (dr_i/dq_i) qd_i^2 / r_i^2 (the stroke's
-acceleration is r qdd + (dr/dq) qd^2) from the measured rates, and the cross terms
-sum_{j != i} M_ij qdd_j / r_i from the PLANNED joint accelerations. The cross terms cannot be fed
-back from measured accelerations in an explicit coupling: stick and bucket are coupled by
-M_12 / sqrt(M_11 M_22) up to 0.7, and the lagged cross-feed of measured accelerations diverged
-within the first period (the added-mass instability of explicit co-simulation). The planned
-accelerations are the ones the servos track; coupling the three pistons implicitly would need
-the arm's rigid-body dynamics in one integrator instead of three.
+How the coupling uses it (orchestrator.plants.native, coupling.c, which evaluates the same
+formulas per step): each cylinder FMU integrates its own diagonal term, M_ii / r_i^2 reflected
+onto the rod (its `mass_load` input, implicit in the FMU's substeps, so the stiff part stays
+stable); the rest goes into F_ext: the velocity-product torques / r_i and the terms
+-M_ij (dr_j/dq_j) qd_j^2 / (r_i r_j) (the stroke's acceleration is r qdd + (dr/dq) qd^2) from the
+step's start, and the cross terms sum_{j != i} M_ij xdd_j / (r_i r_j) from the strokes'
+accelerations over the step, iterated with the FMUs' state rollback until they agree (stick and
+bucket are coupled by M_12 / sqrt(M_11 M_22) up to 0.7: fed back lagged, without iterating,
+they diverged within the first period, the added-mass instability of explicit co-simulation).
+Without rollback the cross terms use the planned accelerations. `at` evaluates the same model
+in Python (the plant's start: the diagonal reflected masses; tests/test_arm_inertia.py checks
+it against plant_models.arm_inertia).
 """
 
 from __future__ import annotations
