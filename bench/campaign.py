@@ -241,6 +241,10 @@ def measure(ecos: bool) -> dict:
         step_s=h, simulated=sum(float(m.t_s[-1]) + h for m in measurements),
         log_bytes=log_bytes, state_bytes=float(np.mean([len(d) for d in states.values()])),
         fmu_us={name: value / steps * 1e6 for name, value in per_fmu.items()})
+    tries = [m.signals["coupling.iterations"] for m in measurements
+             if "coupling.iterations" in m.signals]  # absent in a tree before the coupling
+    if tries:
+        figures["tries"] = float(np.mean(np.concatenate(tries)))
     if ecos:
         try:
             figures["ecos_us"] = replay_ecos(scenario, series, min(steps, 5000)) * 1e6
@@ -264,6 +268,9 @@ def report(figures: dict) -> None:
     print(f"  {figures['steps']} communication steps of {figures['step_s'] * 1e3:g} ms, "
           f"MCAP log {figures['log_bytes'] / 1e6:.1f} MB, resume states "
           f"{figures['state_bytes'] / 1e3:.1f} kB of JSON per period")
+    if "tries" in figures:
+        print(f"  arm coupling: {figures['tries']:.2f} tries of the cylinders per step (the FMU "
+              "replay below steps them once: the master's share holds the other tries)")
     print("share of wall time:")
     for label, key in SHARES:
         print(f"  {label:38s} {figures[key]:7.3f} s  {100 * figures[key] / total:5.1f} %")
