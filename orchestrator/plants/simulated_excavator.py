@@ -98,6 +98,9 @@ class SimulatedExcavator(ResumableState):
         self.inertia = ArmInertia(config.geometry)
         reflected = self._reflected_design_inertia()
         self._master: Master | None = None
+        self.coupling_note: str | None = None
+        """Why the step loop's arm coupling is explicit (one line naming the roles), None when
+        it is implicit or before the FMUs start (orchestrator.plants.native.coupling_note)."""
         self._closed = False
         self._rng = np.random.default_rng(config.seed)
         self._steps = 0  # communication steps taken by the cylinders
