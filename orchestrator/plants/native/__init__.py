@@ -118,28 +118,28 @@ def _library() -> ctypes.CDLL | str:
 IMPLICIT = "implicit: iterated per step with the cylinders' state rollback"
 
 
+def _explicit(lacking: list[str], role: str | None = None) -> str:
+    """Why the arm coupling is explicit, for `role` (None: the plant as a whole)."""
+    who = f"{', '.join(lacking)}: the FMU" if role is None else \
+        "explicit: this FMU" if role in lacking else f"explicit: {', '.join(lacking)} FMU"
+    return (f"{who} cannot get and set its state (canGetAndSetFMUstate), so the arm's cross "
+            "inertia comes from the planned accelerations")
+
+
 def arm_coupling_notes(descriptions: dict[str, object]) -> dict[str, str]:
     """cylinder role -> how the step loop couples the arm's cross inertia into it (IMPLICIT, or
     why it is explicit), from the roles' FMU model descriptions (boom, stick, bucket): the
     coupling is implicit only when every cylinder FMU can get and set its state."""
     lacking = [role for role in _ORDER[:3]
                if not descriptions[role].coSimulation.canGetAndSetFMUstate]
-    if not lacking:
-        return {role: IMPLICIT for role in _ORDER[:3]}
-    return {role: f"explicit: {'this FMU' if role in lacking else ', '.join(lacking) + ' FMU'} "
-            "cannot get and set its state (canGetAndSetFMUstate), so the arm's cross inertia "
-            "comes from the planned accelerations" for role in _ORDER[:3]}
+    return {role: _explicit(lacking, role) if lacking else IMPLICIT for role in _ORDER[:3]}
 
 
 def coupling_note(master: Master) -> str | None:
     """Why the arm coupling of `master`'s cylinders is explicit (one line naming the roles),
     None when it is implicit (every cylinder FMU can roll back its state)."""
     lacking = [name for name in _ORDER[:3] if master[name].rollback is None]
-    if not lacking:
-        return None
-    return (f"{', '.join(lacking)}: the FMU cannot get and set its state "
-            "(canGetAndSetFMUstate), so the arm's cross inertia comes from the planned "
-            "accelerations (explicit coupling, not converged per step)")
+    return _explicit(lacking) if lacking else None
 
 
 def _pointer(array: np.ndarray):
@@ -163,10 +163,7 @@ class NativeCoupling:
             raise ValueError(f"the step loop cannot be built: {library}")
         self._library = library
         self._master, self._servos, self._step_s = master, tuple(servos), float(step_s)
-        every = round(servo_sample_s / step_s)
-        if every < 1 or abs(every * step_s - servo_sample_s) > 1e-9 * servo_sample_s:
-            raise ValueError(f"the servo's sample time {servo_sample_s:g} s is not a multiple "
-                             f"of the communication step {step_s:g} s")
+        every = round(servo_sample_s / step_s)  # a whole number: SimulatedExcavatorConfig
         c = _Coupling()
         cylinders = [master[j] for j in _ORDER[:3]]
         pile = master["pile"]

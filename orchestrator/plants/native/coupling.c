@@ -431,7 +431,7 @@ static long one_step(Coupling *c, Loop *loop) {
         }
     }
     for (i = 0; i < 3; i++) {
-        c->previous_force[i] = c->implicit ? c->force[i] : force[i];
+        c->previous_force[i] = c->force[i]; /* read by the implicit predictor only */
         c->force[i] = force[i];
     }
     column = 0;
