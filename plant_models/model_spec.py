@@ -9,7 +9,9 @@ co-simulation FMU with equivalent ports can replace one of ours. Roles:
   optional: a shared load-sensing pump's pressure and the load-sensing pressure, which a
   load-sensing supply needs, plant_models.supply); outputs `x` (stroke, m),
   `v` (m/s), `p_A`, `p_B` (Pa; optional: an FMU without chambers has none), `F` (N; derivable,
-  see DERIVABLE_OUTPUTS).
+  see DERIVABLE_OUTPUTS), `E_supply`, `E_throttling` (J since the FMU started, optional: the
+  hydraulic energy taken from the supply and the part its metering edges and checks turned into
+  heat; the productivity figures read them, orchestrator.campaign.productivity).
 - pile: inputs `tip_y`, `tip_z` (m), `bucket_angle` (rad, plant_models.geometry.pile_bucket_angle),
   `dump` (>0.5 empties the bucket); outputs `bucket_mass` (kg), `F_y`, `F_z` (N),
   `removed_volume` (m^3), `dumped_mass`, `pile_mass` (kg), `surface_z_at_tip` (m).
@@ -25,7 +27,7 @@ from plant_models.linear_cylinder import LinearCylinderModel
 from plant_models.port_units import PortMap
 
 CYLINDER_INPUTS: tuple[str, ...] = ("u", "F_ext", "mass_load", "p_pump", "p_LS")
-CYLINDER_OUTPUTS: tuple[str, ...] = ("x", "v", "p_A", "p_B", "F")
+CYLINDER_OUTPUTS: tuple[str, ...] = ("x", "v", "p_A", "p_B", "F", "E_supply", "E_throttling")
 PILE_INPUTS: tuple[str, ...] = ("tip_y", "tip_z", "bucket_angle", "dump")
 PILE_OUTPUTS: tuple[str, ...] = (
     "bucket_mass", "F_y", "F_z", "removed_volume", "dumped_mass", "pile_mass", "surface_z_at_tip",
@@ -33,9 +35,11 @@ PILE_OUTPUTS: tuple[str, ...] = (
 # Ports a role's FMU may lack: an actuator without oil chambers (IdealActuator) has no chamber
 # pressures (the excavator then logs none: absent, not a made-up 0), and one that takes no load
 # mass has no `mass_load` (the arm's reflected inertia is then not fed to it); one on its own
-# supply has no `p_pump` / `p_LS` (it can only run with the constant supply).
+# supply has no `p_pump` / `p_LS` (it can only run with the constant supply); one that books no
+# energies has no `E_supply` / `E_throttling` (its energy figures are then absent).
 OPTIONAL_PORTS: Mapping[str, tuple[str, ...]] = MappingProxyType({
-    "cylinder": ("p_A", "p_B", "mass_load", "p_pump", "p_LS"), "pile": (),
+    "cylinder": ("p_A", "p_B", "mass_load", "p_pump", "p_LS", "E_supply", "E_throttling"),
+    "pile": (),
 })
 SUPPLY_INPUTS: tuple[str, ...] = ("p_pump", "p_LS")
 # Outputs the master computes when the FMU lacks them, from other outputs and parameters of the

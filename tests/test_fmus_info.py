@@ -46,7 +46,8 @@ def test_ideal_actuator_fills_the_cylinder_role_without_the_optional_ports():
     # logged as absent, the arm's inertia is not fed to it), so info says it fills the role.
     cylinder = roles("IdealActuator")["roles"]["cylinder"]
     assert cylinder["fills"] and cylinder["missing"] == []
-    assert cylinder["absent"] == ["mass_load", "p_pump", "p_LS", "p_A", "p_B"]
+    assert cylinder["absent"] == ["mass_load", "p_pump", "p_LS", "p_A", "p_B", "E_supply",
+                                  "E_throttling"]
     text = invoke("info", "IdealActuator").stdout
     assert re.search(r"cylinder \(boom/stick/bucket\): fills; without the optional "
                      r"mass_load, p_pump, p_LS, p_A, p_B", text)

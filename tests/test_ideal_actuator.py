@@ -32,8 +32,8 @@ def test_valid_fmu_with_the_cylinder_interface_except_pressures(fmu):
     # Optional: a velocity servo takes no load mass and no oil from a shared pump.
     assert set(CYLINDER_INPUTS) - set(variables) == {"mass_load", "p_pump", "p_LS"}
     assert {"x", "v", "F"} <= {n for n, v in variables.items() if v.causality == "output"}
-    # No chambers, so no pressures: the role's p_A and p_B are honestly missing.
-    assert set(CYLINDER_OUTPUTS) - set(variables) == {"p_A", "p_B"}
+    # No chambers, so no pressures and no oil energies: those roles are honestly missing.
+    assert set(CYLINDER_OUTPUTS) - set(variables) == {"p_A", "p_B", "E_supply", "E_throttling"}
     assert variables["stroke"].causality == variables["x0"].causality == "parameter"
 
 

@@ -15,7 +15,7 @@ import pytest
 
 from fmus.runs import FastSlave
 from orchestrator.campaign import run_campaign
-from orchestrator.plants.native import NativeCoupling
+from orchestrator.plants.native import COLUMNS, NativeCoupling
 from orchestrator.plants.native.board import Board, stepping_after_death
 from orchestrator.review.arm_equation import (
     LOGGED_TOPICS,
@@ -170,10 +170,10 @@ def test_a_closed_loop_or_plant_is_never_stepped():
         plant._start(np.array(plant.coupling.kinematics(*middle)[:3]))
         loop, still = plant._loop, np.zeros((3, 3))
         strokes = np.repeat(np.array(middle)[None, :], 3, axis=0)
-        rows, _, steps, _ = loop.track(strokes, still, still, 38, 0, 0.0)
+        rows, _, steps, _ = loop.track(strokes, still, still, COLUMNS + 3, 0, 0.0)
         assert steps == 3 and np.isfinite(rows).all()
     with pytest.raises(RuntimeError, match="closed"):
-        loop.track(strokes, still, still, 38, 3, 0.03)
+        loop.track(strokes, still, still, COLUMNS + 3, 3, 0.03)
 
 
 def test_the_roles_say_how_the_arm_is_coupled_into_them():

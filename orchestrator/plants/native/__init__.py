@@ -85,7 +85,7 @@ class _Loop(ctypes.Structure):
 _STEP_CALLBACK = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_double,
                                   ctypes.c_double)
 _CALLBACK_FAILED = 0x7ff  # a Python step's code: the exception is kept and raised after the loop
-COLUMNS = 35  # the rows' columns without the supply's 3 (simulated_excavator's signals)
+COLUMNS = 41  # the rows' columns without the supply's 3 (simulated_excavator's signals)
 _ORDER = ("boom", "stick", "bucket", "pile")  # coupling.c's Loop and Board
 
 

@@ -50,7 +50,7 @@ typedef struct {
 
 typedef struct {
     /* buffers of the FMU components, role order (orchestrator.plants.master.Component) */
-    const double *cylinder_out[3]; /* x, v, p_A, p_B, F */
+    const double *cylinder_out[3]; /* x, v, p_A, p_B, F, E_supply, E_throttling */
     double *cylinder_in[3];        /* u, F_ext, mass_load, p_pump, p_LS */
     const double *pile_out;        /* bucket_mass, F_y, F_z, removed, dumped, pile, surface */
     double *pile_in;               /* tip_y, tip_z, bucket_angle, dump */
@@ -310,7 +310,7 @@ static long one_step(Coupling *c, Loop *loop) {
     const double *pose = c->pose, *pile;
     double x[3], v[3], p_A[3], p_B[3], f[3], base[3], r[3], w[3], d[3], u[3], l[3], m[9];
     double cross[9], force[3], pumped[3] = {0.0, 0.0, 0.0}, mass, force_y, force_z, residual[3];
-    double last_force[3], last_v[3], error, jacobian[9], change[3];
+    double last_force[3], last_v[3], error, jacobian[9], change[3], e_supply[3], e_throttling[3];
     long code;
     int i, j, column, iteration;
     if (!(isfinite(c->cylinder_out[0][0]) && isfinite(c->cylinder_out[1][0])
@@ -329,6 +329,7 @@ static long one_step(Coupling *c, Loop *loop) {
     for (i = 0; i < 3; i++) {
         const double *out = c->cylinder_out[i];
         x[i] = out[0], v[i] = out[1], p_A[i] = out[2], p_B[i] = out[3], f[i] = out[4];
+        e_supply[i] = out[5], e_throttling[i] = out[6];
         r[i] = pose[6 + i];
         w[i] = v[i] / r[i];
         d[i] = pose[21 + i];
@@ -437,7 +438,9 @@ static long one_step(Coupling *c, Loop *loop) {
     column = 0;
     for (i = 0; i < 3; i++) {
         row[column++] = x[i], row[column++] = v[i], row[column++] = p_A[i];
-        row[column++] = p_B[i], row[column++] = f[i], row[column++] = u[i];
+        row[column++] = p_B[i], row[column++] = f[i];
+        /* the energies at t_k, like the other outputs (NaN where the FMU books none) */
+        row[column++] = e_supply[i], row[column++] = e_throttling[i], row[column++] = u[i];
         row[column++] = base[i] + force[i], row[column++] = l[i];
     }
     for (i = 0; i < 7; i++) row[column++] = pile[i];
