@@ -5,8 +5,9 @@ Written from the law as fmus/HydraulicCylinder/model.c documents it (its header 
 translated from its code: states x (stroke, m), v (m/s), psi_A, psi_B (chamber pressures, Pa, or
 cavitation voids when negative); inputs u, F_ext (N), mass_load (kg), p_pump, p_LS (Pa) held
 over each communication step; a critical-centre 4/3 valve with square-root edges and their
-laminar cubic, a load-holding check and post-compensator on the meter-in edge, port relief and
-make-up, chamber compressibility with cavitation voids, Coulomb (tanh) and viscous friction.
+laminar cubic, a load-holding check and post-compensator on the meter-in edge, a regeneration
+passage from the rod to the piston side while extending, port relief and make-up, chamber
+compressibility with cavitation voids, Coulomb (tanh) and viscous friction.
 
 `reference_run` integrates each step with `scipy.integrate.solve_ivp` (Radau by default, its own
 finite-difference Jacobian: nothing of the C model's analytic one) at tight tolerances. The end
@@ -73,9 +74,10 @@ class CylinderLaw:
             return _orifice(dp, p["dp_rated"], p["dp_laminar"])
 
         Q_A = Q_B = 0.0
-        if a > 0.0:  # P -> A through check and compensator, B -> T
-            Q_A = q * edge(max(p_S - max(p_LS, p_A), 0.0))
-            Q_B = -q_out * edge(p_B - p_T)
+        if a > 0.0:  # P -> A through check and compensator, B -> T; B -> A regeneration
+            regeneration = p.get("regeneration_ratio", 0.0) * q * edge(max(p_B - p_A, 0.0))
+            Q_A = q * edge(max(p_S - max(p_LS, p_A), 0.0)) + regeneration
+            Q_B = -q_out * edge(p_B - p_T) - regeneration
         elif a < 0.0:  # P -> B, A -> T
             Q_B = q * edge(max(p_S - max(p_LS, p_B), 0.0))
             Q_A = -q_out * edge(p_A - p_T)

@@ -26,6 +26,7 @@ typedef struct {
     double dp_laminar, inv_dp_rated, inv_sqrt_rated_laminar, M, inv_mass, F_c, inv_v_c, b;
     double q_open; /* q_rated*a: flow of one edge at dp_rated at the current opening, m^3/s */
     double q_out;  /* meter_out_ratio*q_open: the same of a meter-out edge */
+    double q_regen; /* regeneration_ratio*q_open while a > 0 (B->A passage), else 0 */
     double p_LS;   /* compensator setting, Pa (0: none) */
     double a, F_ext;
 } P;

@@ -13,10 +13,14 @@
  *   max(p_LS, p): a post-compensator (flow sharing, LUDV) between the meter-in edge and the
  *   chamber holds the edge's outlet at the highest load pressure p_LS of all sections, so every
  *   open section sees the same edge drop p_S - p_LS; p_LS = 0 (the start): no compensator.
+ * Regeneration (a > 0 only): Q_BA = g*q*f(max(p_B - p_A, 0)), g = regeneration_ratio, a passage
+ *   from the rod side to the piston side through a check, opened with the extending spool: a
+ *   pulling load (the stick's arm-in under its own weight) drives the rod side's return into the
+ *   piston side instead of letting that side cavitate; 0 (default): none.
  * Per chamber: relief to tank Q_rl = k_relief*max(p - p_relief, 0); make-up (anti-cavitation)
  *   check from tank Q_mu = k_makeup*max(p_T - dp_makeup - p, 0).
  * Chambers: V_A = V_dead_A + A_A*x, V_B = V_dead_B + A_B*(stroke - x), net inflow
- *   Q_A = Q_PA - Q_AT - Q_rl,A + Q_mu,A, Q_B = Q_PB - Q_BT - Q_rl,B + Q_mu,B;
+ *   Q_A = Q_PA - Q_AT + Q_BA - Q_rl,A + Q_mu,A, Q_B = Q_PB - Q_BT - Q_BA - Q_rl,B + Q_mu,B;
  *   p = max(psi, 0), dpsi/dt = beta/V*(Q - dV/dt) - [psi < 0]*psi/V*dV/dt: where the make-up
  *   cannot keep up the pressure reaches 0 gauge and the oil cavitates; psi < 0 is then a void
  *   V_void = -psi*V/beta that inflow fills before p rises (the oil volume is conserved).
@@ -98,7 +102,8 @@ static double chamber_rate(double beta, double V, double dV_dt, double Q, double
  * Powers, from the flows above (Q_PA... all >= 0 in their arrow's direction but Q_AT, Q_BT,
  * which reverse when p < p_T): supply p_S*(Q_PA + Q_PB); tank p_T*(Q_AT + Q_BT + Q_rl - Q_mu);
  * throttling the sum of dp*Q over the four edges (the meter-in edge's from p_S to the chamber:
- * its compensator's part (max(p_LS, p) - p)*Q is E_compensator) and both make-up checks; relief
+ * its compensator's part (max(p_LS, p) - p)*Q is E_compensator), the regeneration passage
+ * (p_B - p_A)*Q_BA and both make-up checks; relief
  * (p - p_T)*Q_rl; oil p*(Q - dV/dt). Their balance is p_A*A_A*dx - p_B*A_B*dx = F*dx exactly
  * (p*Q telescopes edge by edge). The piston turns F*dx into load F_ext*dx, friction F_f*dx and
  * kinetic M*v*dv (dx = v off the stops); on a stop (dx = 0) the stage's kinetic power M*v*dv
@@ -110,7 +115,8 @@ static double chamber_rate(double beta, double V, double dV_dt, double Q, double
 void cylinder_derivatives(const P *p, const Y *y, Y *dy, double *w) {
     double p_A = fmax(y->psi_A, 0.0), p_B = fmax(y->psi_B, 0.0);
     double x = clamp(y->x, 0.0, p->stroke);
-    double Q_PA = 0.0, Q_AT = 0.0, Q_PB = 0.0, Q_BT = 0.0, Q_A, Q_B, force, dx, dv, tanh_v;
+    double Q_PA = 0.0, Q_AT = 0.0, Q_PB = 0.0, Q_BT = 0.0, Q_BA = 0.0, Q_A, Q_B, force, dx, dv;
+    double tanh_v;
     double outlet_A = fmax(p->p_LS, p_A), outlet_B = fmax(p->p_LS, p_B); /* compensator */
     double relief_A = p->k_relief * fmax(p_A - p->p_relief, 0.0);
     double relief_B = p->k_relief * fmax(p_B - p->p_relief, 0.0);
@@ -120,12 +126,13 @@ void cylinder_derivatives(const P *p, const Y *y, Y *dy, double *w) {
     if (p->a > 0.0) {
         Q_PA = p->q_open * orifice(p, fmax(p->p_S - outlet_A, 0.0));
         Q_BT = p->q_out * orifice(p, p_B - p->p_T);
+        if (p->q_regen > 0.0) Q_BA = p->q_regen * orifice(p, fmax(p_B - p_A, 0.0));
     } else if (p->a < 0.0) { /* q_open < 0 */
         Q_AT = -(p->q_out * orifice(p, p_A - p->p_T));
         Q_PB = -(p->q_open * orifice(p, fmax(p->p_S - outlet_B, 0.0)));
     }
-    Q_A = Q_PA - Q_AT;
-    Q_B = Q_PB - Q_BT;
+    Q_A = Q_PA - Q_AT + Q_BA;
+    Q_B = Q_PB - Q_BT - Q_BA;
     Q_A -= relief_A;
     Q_B -= relief_B;
     Q_A += makeup_A;
@@ -153,7 +160,7 @@ void cylinder_derivatives(const P *p, const Y *y, Y *dy, double *w) {
     w[W_SUPPLY] = p->p_S * (Q_PA + Q_PB);
     w[W_TANK] = p->p_T * (Q_AT + Q_BT + relief_A + relief_B - makeup_A - makeup_B);
     w[W_THROTTLING] = (p->p_S - p_A) * Q_PA + (p_A - p->p_T) * Q_AT + (p->p_S - p_B) * Q_PB
-                      + (p_B - p->p_T) * Q_BT + (p->p_T - p_A) * makeup_A
+                      + (p_B - p->p_T) * Q_BT + (p_B - p_A) * Q_BA + (p->p_T - p_A) * makeup_A
                       + (p->p_T - p_B) * makeup_B;
     w[W_RELIEF] = (p_A - p->p_T) * relief_A + (p_B - p->p_T) * relief_B;
     w[W_FRICTION] = (p->F_c * tanh_v + p->b * y->v) * dx;
@@ -193,7 +200,7 @@ void cylinder_jacobian(const P *p, const Y *y, const Y *dy, double *J) {
     double x = clamp(y->x, 0.0, p->stroke);
     int inside = y->x > 0.0 && y->x < p->stroke;
     double V_A = p->V_dead_A + p->A_A * x, V_B = p->V_dead_B + p->A_B * (p->stroke - x);
-    double g_A, g_B, tanh_v = tanh(y->v * p->inv_v_c), dx, force;
+    double g_A, g_B, g_regen, tanh_v = tanh(y->v * p->inv_v_c), dx, force;
     int on_stop = (y->x <= 0.0 && y->v <= 0.0) || (y->x >= p->stroke && y->v >= 0.0);
     double void_A = y->psi_A < 0.0 ? y->psi_A : 0.0, void_B = y->psi_B < 0.0 ? y->psi_B : 0.0;
     int i;
@@ -226,6 +233,15 @@ void cylinder_jacobian(const P *p, const Y *y, const Y *dy, double *J) {
         J[2 * 4 + 1] = -p->A_A * (p->beta + void_A) / V_A;
         J[3 * 4 + 1] = p->A_B * (p->beta + void_B) / V_B;
     }
+    /* the regeneration passage: dQ_BA/dp_B = g_regen = -dQ_BA/dp_A, into A and out of B; a
+     * void's pressure (psi < 0) is 0 whatever psi, so its column takes no part */
+    if (p->q_regen > 0.0 && p_B > p_A) {
+        g_regen = p->q_regen * orifice_slope(p, p_B - p_A);
+        g_A -= g_regen;
+        g_B -= g_regen;
+        if (y->psi_B > 0.0) J[2 * 4 + 3] = p->beta / V_A * g_regen;
+        if (y->psi_A > 0.0) J[3 * 4 + 2] = p->beta / V_B * g_regen;
+    }
     J[2 * 4 + 2] = y->psi_A > 0.0 ? p->beta / V_A * g_A : -p->A_A * dx / V_A;
     J[3 * 4 + 3] = y->psi_B > 0.0 ? p->beta / V_B * g_B : p->A_B * dx / V_B;
 }
@@ -255,6 +271,7 @@ static void gather(const double *v, const State *s, P *p) {
     p->a = clamp(v[VR_u], -1.0, 1.0);
     p->q_open = v[VR_q_rated] * p->a;
     p->q_out = v[VR_meter_out_ratio] * p->q_open;
+    p->q_regen = p->a > 0.0 ? v[VR_regeneration_ratio] * p->q_open : 0.0;
     p->F_ext = clamp(v[VR_F_ext], -s->F_limit, s->F_limit);
 }
 
@@ -346,14 +363,17 @@ static const char *check_mass_load(double mass_load) {
  * both chambers at their dead volumes (sqrt(spring/M)), plus the friction slope (damping/M),
  * plus the largest flow gain over the smallest chamber's capacitance V/beta (flow). Per chamber
  * one metering edge is open (slope at most 1.25*q/sqrt(dp_rated*dp_laminar), at dp = 0, q the
- * larger of q_rated and meter_out_ratio*q_rated; a compensator only flattens the meter-in edge),
+ * larger of q_rated and meter_out_ratio*q_rated; a compensator only flattens the meter-in edge;
+ * the regeneration passage between the chambers adds its gain to a row twice, on the diagonal and
+ * beside it: 2*regeneration_ratio*q_rated),
  * and relief and make-up never open together (p_relief > p_T), so the larger of k_relief and
  * k_makeup counts; k_makeup only if the make-up can open at all (p_T > dp_makeup, as p >= 0).
  * All three terms fall as M grows, so they are kept and combined for each step's M. */
 static void stiffness_terms(const double *v, State *s) {
     double V_min = fmin(v[VR_V_dead_A], v[VR_V_dead_B]);
     /* The same operations as the per-stage constants in gather() use. */
-    double q_edge = v[VR_q_rated] * fmax(1.0, v[VR_meter_out_ratio]); /* the larger edge */
+    double q_edge = v[VR_q_rated] * (fmax(1.0, v[VR_meter_out_ratio])
+                                     + 2.0 * v[VR_regeneration_ratio]);
     double valve = 1.25 * q_edge * (1.0 / sqrt(v[VR_dp_rated] * v[VR_dp_laminar]));
     double k_port = v[VR_p_tank] > v[VR_dp_makeup] ? fmax(v[VR_k_relief], v[VR_k_makeup])
                                                    : v[VR_k_relief];

@@ -206,21 +206,24 @@ class LogSection(Section):
 
 
 _LPM = M3_S_PER_L_MIN
-_PUMP_FIELDS = ("max_flow_l_min", "cutoff_pa", "margin_pa")
+_PUMP_FIELDS = ("max_flow_l_min", "cutoff_pa", "margin_pa", "engine_power_w", "pump_efficiency")
 
 
 class SupplySection(Section):
     """The oil supply of the three valves (plant_models.supply). kind "constant": each valve at
     its cylinder FMU's own p_supply. "load_sensing": one load-sensing pump with flow sharing
     for all three, its meter-in edges pressure compensated: max_flow_l_min (L/min), cutoff_pa
-    and margin_pa (Pa), defaults those of LoadSensingPump (a 20 t machine's 2 x 220 L/min, 30
-    MPa, 2.5 MPa), filled in so the run log shows them (and cleared under "constant", where they
-    do not apply). Plant kind "sim" only."""
+    and margin_pa (Pa), and its power limiter's engine_power_w (W) and pump_efficiency (-, the
+    hydraulic power allowed is their product), defaults those of LoadSensingPump (a CAT 320's
+    2 x 214.5 L/min, 35 MPa, 121 kW; 2.5 MPa, 0.85), filled in so the run log shows them (and
+    cleared under "constant", where they do not apply). Plant kind "sim" only."""
 
     kind: StrictStr = "constant"
     max_flow_l_min: Number | None = Field(default=None, gt=0.0)
     cutoff_pa: Number | None = Field(default=None, gt=0.0)
     margin_pa: Number | None = Field(default=None, gt=0.0)
+    engine_power_w: Number | None = Field(default=None, gt=0.0)
+    pump_efficiency: Number | None = Field(default=None, gt=0.0, le=1.0)
 
     @model_validator(mode="after")
     def _pump(self):
@@ -235,7 +238,8 @@ class SupplySection(Section):
             return self
         pump = LoadSensingPump()
         defaults = {"max_flow_l_min": pump.max_flow_m3_s / _LPM, "cutoff_pa": pump.cutoff_pa,
-                    "margin_pa": pump.margin_pa}
+                    "margin_pa": pump.margin_pa, "engine_power_w": pump.engine_power_w,
+                    "pump_efficiency": pump.pump_efficiency}
         for name, value in defaults.items():
             if getattr(self, name) is None:
                 object.__setattr__(self, name, value)
@@ -247,7 +251,8 @@ class SupplySection(Section):
         """The shared pump (SI), None for the constant supply."""
         if self.kind == "constant":
             return None
-        return LoadSensingPump(self.max_flow_l_min * _LPM, self.cutoff_pa, self.margin_pa)
+        return LoadSensingPump(self.max_flow_l_min * _LPM, self.cutoff_pa, self.margin_pa,
+                               self.engine_power_w, self.pump_efficiency)
 
 
 class PlantSection(Section):

@@ -65,6 +65,7 @@ class _Coupling(ctypes.Structure):
         ("servo", _Servo * 3),
         ("supplied", ctypes.c_long), ("full", ctypes.c_double * 3),
         ("q_max", ctypes.c_double), ("margin", ctypes.c_double), ("ceiling", ctypes.c_double),
+        ("power", ctypes.c_double),
         ("servo_every", ctypes.c_long), ("implicit", ctypes.c_long),
         ("max_iterations", ctypes.c_long), ("tolerance", ctypes.c_double),
         ("force", ctypes.c_double * 3), ("previous_force", ctypes.c_double * 3),
@@ -191,7 +192,7 @@ class NativeCoupling:
             _servo_into(servo, c.servo[i])
         c.supplied = supply_parameters is not None
         if supply_parameters is not None:
-            fulls, c.q_max, c.margin, c.ceiling = supply_parameters
+            fulls, c.q_max, c.margin, c.ceiling, c.power = supply_parameters
             c.full[:] = [-1.0 if full is None else full for full in fulls]
         self.note = coupling_note(master)
         """Why the arm coupling is explicit (coupling_note), None when it is implicit."""

@@ -64,7 +64,7 @@ typedef struct {
     Servo servo[3];
     long supplied;              /* 1: the load-sensing pump feeds the sections */
     double full[3];             /* a section's flow at the full margin, m^3/s; < 0: off pump */
-    double q_max, margin, ceiling;
+    double q_max, margin, ceiling, power; /* power: the power limit, W */
     long servo_every;           /* communication steps per servo sample */
     long implicit;              /* 1: iterate the arm coupling with rollback */
     long max_iterations;
@@ -226,7 +226,7 @@ static double command(Servo *s, double x_ref, double v_ref, double a_ref, double
     return u > 1.0 ? 1.0 : (u < -1.0 ? -1.0 : u);
 }
 
-/* LoadSensingPump.law: p_pump, p_LS, sharing into out. */
+/* LoadSensingPump.law: p_pump, p_LS, sharing into out (flow, then power limited). */
 static void supply(const Coupling *c, const double *u, const double *p_A, const double *p_B,
                    double *out) {
     double p_ls = 0.0, demand = 0.0, sharing;
@@ -243,6 +243,16 @@ static void supply(const Coupling *c, const double *u, const double *p_A, const 
     }
     p_ls = p_ls < c->ceiling ? p_ls : c->ceiling;
     sharing = demand <= c->q_max ? 1.0 : c->q_max / demand;
+    /* the power limiter (plant_models.supply.power_limited, the same operations) */
+    if (demand > 0.0 && (p_ls + c->margin * sharing * sharing) * sharing * demand > c->power) {
+        for (i = 0; i < 60; i++) {
+            const double excess = (p_ls + c->margin * sharing * sharing) * sharing * demand
+                                  - c->power;
+            const double step = excess / ((p_ls + 3.0 * c->margin * sharing * sharing) * demand);
+            sharing -= step;
+            if (!(step > 1e-15 * sharing)) break;
+        }
+    }
     out[0] = p_ls + c->margin * sharing * sharing;
     out[1] = p_ls;
     out[2] = sharing;
