@@ -242,18 +242,31 @@ def _bandwidth(closed, step_s: float) -> float:
 class JointServo:
     """The runtime control law of one cylinder (scalar math, one call per step).
 
-    `command(x_ref, v_ref, a_ref, x, force)`: stroke reference x_ref (m), its rate v_ref (m/s)
-    and acceleration a_ref (m/s^2), measured stroke x (m) and hydraulic force (N) -> spool
-    command u in [-1, 1] to hold over the next step. `velocity_command` is the same law up to
-    the commanded piston velocity w (m/s), before the valve law (CylinderModel.opening, which
-    `command` evaluates inline with its constants precomputed).
+    `command(x_ref, v_ref, a_ref, x, force, load_kg)`: stroke reference x_ref (m), its rate
+    v_ref (m/s) and acceleration a_ref (m/s^2), measured stroke x (m), hydraulic force (N) and
+    the arm's inertia reflected onto the rod now (kg, optional) -> spool command u in [-1, 1]
+    to hold over the next step. `velocity_command` is the same law up to the commanded piston
+    velocity w (m/s), before the valve law (CylinderModel.opening, which `command` evaluates
+    inline with its constants precomputed).
+
+    Gain scheduling on the load (design_load_kg > 0, the reflected inertia the design's mass
+    holds): where the arm reflects more than that onto the rod (a bucket curled in reflects up
+    to 18 times its mid-stroke inertia, a full bucket 3.4 times more again), the hydraulic mode
+    falls as 1 / sqrt(moving mass), and gains designed at the lighter load would put the
+    position loop's crossover on it. The law then uses the moving mass m = design mass -
+    design_load_kg + load_kg for m a_ref and scales K_p, k_f and the high-pass corner w_f by
+    sqrt(design mass / m): the loop keeps its shape relative to the mode (k_f ~ w_h, w_f =
+    FILTER_RATIO w_h, and K_p's margins are set by w_h; tests/test_servo.py checks the margins
+    up to 18 times the design's load). Lighter loads keep the design's gains. The step loop (orchestrator.plants.native) feeds
+    each step's reflected inertia, the same it gives the FMU as mass_load.
     """
 
     __slots__ = ("_kp", "_kf", "_keep", "_gain", "_mass", "_filtered", "_last", "_extend",
                  "_retract", "_least", "_per_reserve_extend", "_per_reserve_retract",
-                 "_compensated", "_metered", "_pull", "_p_tank", "_areas", "_held")
+                 "_compensated", "_metered", "_pull", "_p_tank", "_areas", "_held",
+                 "_design_load")
 
-    def __init__(self, design: ServoDesign) -> None:
+    def __init__(self, design: ServoDesign, design_load_kg: float = 0.0) -> None:
         two_over_t = 2.0 / design.step_s
         w_f = design.pressure_filter_rad_s
         self._kp = design.position_gain_1_s
@@ -287,6 +300,17 @@ class JointServo:
         self._filtered = 0.0
         self._last: float | None = None
         self._held = 0.0
+        self._design_load = float(design_load_kg)
+        if not 0.0 <= self._design_load < self._mass:
+            raise ValueError(f"design_load_kg must lie in [0, the design's mass {self._mass} "
+                             f"kg), got {design_load_kg!r}")
+
+    def _scheduled(self, load_kg: float | None) -> tuple[float, float]:
+        """(moving mass kg, gain scale) at the reflected load load_kg (class docstring)."""
+        if load_kg is None or self._design_load <= 0.0 or load_kg <= self._design_load:
+            return self._mass, 1.0
+        moving = self._mass - self._design_load + load_kg
+        return moving, math.sqrt(self._mass / moving)
 
     def state(self) -> tuple[float, float | None, float]:
         """What the servo carries from one sample to the next: the high-passed force (N), the
@@ -301,23 +325,36 @@ class JointServo:
         self._last = None if last_n is None else float(last_n)
         self._held = float(held)
 
-    def velocity_command(self, x_ref: float, v_ref: float, a_ref: float, x: float,
-                         force: float) -> float:
-        """Commanded piston velocity w (m/s); advances the filter by one step."""
-        excess = force - self._mass * a_ref
-        last = excess if self._last is None else self._last
-        self._filtered = self._keep * self._filtered + self._gain * (excess - last)
-        self._last = excess
-        return v_ref + self._kp * (x_ref - x) - self._kf * self._filtered
+    def _high_pass(self, scale: float) -> tuple[float, float]:
+        """The Tustin high-pass's (keep, gain) with its corner scaled by `scale` <= 1: the
+        corner's w_f T / 2 = (1 - keep) / (1 + keep) scaled (coupling.c does the same)."""
+        if scale >= 1.0:
+            return self._keep, self._gain
+        corner = (1.0 - self._keep) / (1.0 + self._keep) * scale
+        return (1.0 - corner) / (1.0 + corner), 1.0 / (1.0 + corner)
 
-    def command(self, x_ref: float, v_ref: float, a_ref: float, x: float, force: float) -> float:
-        """Spool command u in [-1, 1] (see the class docstring)."""
-        excess = force - self._mass * a_ref
+    def velocity_command(self, x_ref: float, v_ref: float, a_ref: float, x: float,
+                         force: float, load_kg: float | None = None) -> float:
+        """Commanded piston velocity w (m/s); advances the filter by one step."""
+        mass, scale = self._scheduled(load_kg)
+        keep, gain = self._high_pass(scale)
+        excess = force - mass * a_ref
         last = excess if self._last is None else self._last
-        filtered = self._keep * self._filtered + self._gain * (excess - last)
+        self._filtered = keep * self._filtered + gain * (excess - last)
+        self._last = excess
+        return v_ref + scale * (self._kp * (x_ref - x) - self._kf * self._filtered)
+
+    def command(self, x_ref: float, v_ref: float, a_ref: float, x: float, force: float,
+                load_kg: float | None = None) -> float:
+        """Spool command u in [-1, 1] (see the class docstring)."""
+        mass, scale = self._scheduled(load_kg)
+        keep, gain = self._high_pass(scale)
+        excess = force - mass * a_ref
+        last = excess if self._last is None else self._last
+        filtered = keep * self._filtered + gain * (excess - last)
         self._filtered = filtered
         self._last = excess
-        velocity = v_ref + self._kp * (x_ref - x) - self._kf * filtered
+        velocity = v_ref + scale * (self._kp * (x_ref - x) - self._kf * filtered)
         if self._compensated:
             if velocity >= 0.0:
                 pulled = -force / self._areas[1] - self._p_tank

@@ -3,6 +3,7 @@ servo's valve law on it, and the shared pump's law (plant_models.supply), agains
 law, the force balance and the flow balance worked out here (scipy's root finder for the
 pump's drop); none of the references comes from the code under test."""
 
+import json
 import math
 import shutil
 from pathlib import Path
@@ -133,7 +134,7 @@ def _models(flows):
 
 def test_the_pump_law_shares_its_flow_and_holds_its_margin():
     lpm = 1e-3 / 60
-    pump = LoadSensingPump(440 * lpm, 30e6, MARGIN)
+    pump = LoadSensingPump(440 * lpm, 30e6, MARGIN, engine_power_w=1e9)  # no power limit
     flows = [(440 * lpm, 2.5e6), (440 * lpm, 2.5e6), (100 * lpm, 3.5e6)]
     law = pump.law(_models(flows))
     # Little demand: the margin above the highest meter-in chamber (p_A extending, p_B
@@ -154,6 +155,34 @@ def test_the_pump_law_shares_its_flow_and_holds_its_margin():
     assert law(0.5, 0.1, 0.0, 34e6, 1e6, 3e6, 1e6, 1e6, 1e6) == (30e6, 30e6 - MARGIN, 1.0)
     with pytest.raises(ValueError, match="margin_pa must be below cutoff_pa"):
         LoadSensingPump(440 * lpm, 2e6, MARGIN)
+
+
+@pytest.mark.parametrize("p_ls", [5e6, 15e6, 27e6])
+def test_the_power_limiter_holds_p_times_q_at_the_engines_power(p_ls):
+    """p_pump x Q = P when the flow-limited pump would take more (Q = s D, the sections' flows
+    at the drop p_pump - p_LS = margin s^2, summed here from their orifice law), and the law is
+    the flow limiter's alone when it takes less."""
+    lpm = 1e-3 / 60
+    flows = [(440 * lpm, 2.5e6), (440 * lpm, 2.5e6), (220 * lpm, 3.5e6)]
+    openings = (0.9, -0.5, 0.7)
+    pressures = (p_ls, 1e6, 2e6, p_ls - 1e6, 1e6, 3e6)  # the boom's p_A is the highest load
+    limited = LoadSensingPump(429 * lpm, 35e6, MARGIN, 121e3, 0.85)
+    unlimited = LoadSensingPump(429 * lpm, 35e6, MARGIN, 1e9)
+    p_pump, p_got, sharing = limited.law(_models(flows))(*openings, *pressures)
+    free = unlimited.law(_models(flows))(*openings, *pressures)
+    drop = p_pump - p_got
+    flow = sum(q * abs(a) * math.sqrt(drop / dp) for (q, dp), a in zip(flows, openings,
+                                                                       strict=True))
+    assert p_got == p_ls and drop == pytest.approx(MARGIN * sharing**2, rel=1e-12)
+    if free[0] * free[2] * sum(q * abs(a) * math.sqrt(MARGIN / dp) for (q, dp), a in
+                               zip(flows, openings, strict=True)) > 121e3 * 0.85:
+        assert sharing < free[2]
+        assert p_pump * flow == pytest.approx(121e3 * 0.85, rel=1e-12)
+    else:
+        assert (p_pump, p_got, sharing) == free
+    assert p_pump * flow <= 121e3 * 0.85 * (1 + 1e-12)
+    with pytest.raises(ValueError, match="pump_efficiency must be at most 1"):
+        LoadSensingPump(429 * lpm, 35e6, MARGIN, 121e3, 1.2)
 
 
 def test_three_cylinders_on_one_pump_slow_down_together():
@@ -212,3 +241,38 @@ def test_a_cylinder_with_its_own_supply_parameter_stays_off_the_pump(tmp_path):
             boom.step(k * 0.01, 0.01)
         x = float(boom.outputs[0])
     assert x > 0.25  # it extended, fed by its own 20 MPa
+
+
+def test_the_paper_machine_stays_within_its_engine_and_keeps_its_chambers_full(tmp_path):
+    """Three paper periods on a 70 kW engine (the paper's 121 kW reaches its limit only in the
+    deep trench of periods 9-14): the supply's power, from the cylinder FMUs' own E_supply
+    integrals (p_S x Q over each step), never exceeds the limiter's 70 kW x 0.85 and reaches it
+    (the limiter acts); no chamber sits at 0 Pa (make-up sized for the pump, stick
+    regeneration)."""
+    from orchestrator.campaign import run_campaign
+    from orchestrator.runlog import read_run
+    from orchestrator.scenario import load_scenario
+
+    scenario = load_scenario(Path(__file__).resolve().parents[1] / "scenarios"
+                             / "paper-2020.toml", ["periods=3",
+                                                   "plant.supply.engine_power_w=70e3"])
+    supply = scenario.plant.supply
+    limit = supply.engine_power_w * supply.pump_efficiency
+    assert limit == pytest.approx(59.5e3)
+    run_campaign(scenario, log_path=tmp_path / "run.mcap")
+    joints = ("boom", "stick", "bucket")
+    logged = read_run(tmp_path / "run.mcap", topics=[f"/signals/{j}" for j in joints]
+                      + [f"/cylinder/{j}" for j in joints])
+    power = []
+    for k in range(1, 4):
+        channels = [logged.channels[f"/signals/{j}"] for j in joints]
+        fields = [c.of_period(k) for c in channels]
+        energy = sum(f["values"][:, json.loads(c.metadata["names"]).index(f"{j}.E_supply")]
+                     for f, c, j in zip(fields, channels, joints, strict=True))
+        power.append(np.diff(energy) / np.diff(fields[0]["t_s"]))
+    power = np.concatenate(power)
+    assert power.max() <= limit * (1 + 1e-9)
+    assert power.max() > 0.99 * limit
+    for j in joints:
+        cylinder = logged.channels[f"/cylinder/{j}"].fields
+        assert np.all(cylinder["p_A_Pa"] > 0.0) and np.all(cylinder["p_B_Pa"] > 0.0), j

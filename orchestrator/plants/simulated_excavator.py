@@ -107,6 +107,7 @@ class SimulatedExcavator(ResumableState):
         self._pile_time = 0.0
         self._initial_surface: tuple[np.ndarray, np.ndarray] | None = None
         designs, linear_models, identifications, supplied = [], [], [], []
+        design_loads: list[float] = []  # kg per joint: the reflected inertia its servo holds
         pump = config.supply
         for index, (joint, spec) in enumerate(zip(JOINT_NAMES, config.cylinders, strict=True)):
             description = fmu_description(joint, spec)
@@ -118,9 +119,12 @@ class SimulatedExcavator(ResumableState):
             # scenario: unchanged); only an FMU with other parameter names is identified.
             model = given if given is not None or spec.linear_model is not None \
                 else model_from_fmu(description, spec.parameters)
+            design_loads.append(0.0)
             if given is None and model is not None and "mass_load" in ports:
-                # The FMU's mass is the piston's; the arm's inertia comes through mass_load.
+                # The FMU's mass is the piston's; the arm's inertia comes through mass_load,
+                # and the servo schedules its gains on it (plant_models.servo.JointServo).
                 model = replace(model, mass_kg=model.mass_kg + reflected[index])
+                design_loads[-1] = reflected[index]
             if pump is not None and all(p in ports for p in SUPPLY_INPUTS):
                 valve = model or model_from_fmu(description, spec.parameters)
                 if valve is None:
@@ -165,8 +169,7 @@ class SimulatedExcavator(ResumableState):
         self.linear_models: tuple[LinearCylinderModel | None, ...] = tuple(linear_models)
         self.identifications: tuple[CylinderIdentification | None, ...] = \
             tuple(identifications)
-        # (u0, u1, u2, p_A0, p_B0, ...) -> (p_pump, p_LS, sharing), None: constant supply.
-        self._supply_law = pump.law(supplied) if pump is not None else None
+        self._design_loads = tuple(design_loads)
         self._supply_parameters = None if pump is None else pump.law_parameters(supplied)
         self._columns = _COLUMNS + (_SUPPLY_COLUMNS if pump is not None else ())
         pile_description = fmu_description("pile", config.pile)
@@ -209,8 +212,10 @@ class SimulatedExcavator(ResumableState):
         start["pile"] = {"tip_y": tip_y, "tip_z": tip_z, "bucket_angle": -angle, "dump": 0.0}
         self._master = Master(components, cfg.communication_step_s, start)
         self._start_pose = tuple(float(angle) for angle in pose)
-        self._servos = tuple(JointServo(d) if isinstance(d, ServoDesign) else LinearJointServo(d)
-                             for d in self.servo_designs)
+        self._servos = tuple(JointServo(d, load) if isinstance(d, ServoDesign)
+                             else LinearJointServo(d)
+                             for d, load in zip(self.servo_designs, self._design_loads,
+                                                strict=True))
         self._loop = self._step_loop()
         profile, grid = self._profile()
         self._initial_surface = None if profile is None or grid is None else (grid, profile)

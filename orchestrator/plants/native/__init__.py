@@ -48,7 +48,7 @@ class _Servo(ctypes.Structure):
         ("p_tank", ctypes.c_double), ("areas", ctypes.c_double * 2),
         ("compensated", ctypes.c_long), ("per_velocity", ctypes.c_double),
         ("filtered", ctypes.c_double), ("last", ctypes.c_double), ("has_last", ctypes.c_long),
-        ("held", ctypes.c_double)]
+        ("held", ctypes.c_double), ("design_load", ctypes.c_double)]
 
 
 class _Coupling(ctypes.Structure):
@@ -345,7 +345,7 @@ def _servo_into(servo: JointServo | LinearJointServo, out: _Servo) -> None:
         out.linear, out.kp, out.per_velocity = 1, servo._kp, servo._per_velocity
         return
     for name in ("kp", "kf", "keep", "gain", "mass", "extend", "retract", "least",
-                 "per_reserve_extend", "per_reserve_retract", "p_tank"):
+                 "per_reserve_extend", "per_reserve_retract", "p_tank", "design_load"):
         setattr(out, name, getattr(servo, f"_{name}"))
     out.metered[:], out.pull[:], out.areas[:] = servo._metered, servo._pull, servo._areas
     out.compensated = bool(servo._compensated)

@@ -46,6 +46,7 @@ typedef struct {
     double filtered, last; /* the filter's state; has_last = 0: no sample yet */
     long has_last;
     double held;           /* the command held since the last sample */
+    double design_load;    /* kg: the reflected inertia the design holds (0: no scheduling) */
 } Servo;
 
 typedef struct {
@@ -184,19 +185,31 @@ static void inertia(const Coupling *c, double w0, double w1, double w2, double p
 
 /* The servo's law (plant_models.servo.JointServo.command; LinearJointServo.command for the
  * linear servo): the spool command in [-1, 1]; advances the filter. */
-static double command(Servo *s, double x_ref, double v_ref, double a_ref, double x, double force) {
+static double command(Servo *s, double x_ref, double v_ref, double a_ref, double x, double force,
+                      double load) {
     double excess, last, filtered, velocity, u, pulled, gain, reserve, candidate;
+    double mass = s->mass, scale = 1.0, keep, high;
     if (s->linear) {
         u = (v_ref + s->kp * (x_ref - x)) * s->per_velocity;
         return u > 1.0 ? 1.0 : (u < -1.0 ? -1.0 : u);
     }
-    excess = force - s->mass * a_ref;
+    if (s->design_load > 0.0 && load > s->design_load) { /* gain scheduling on the load */
+        mass = s->mass - s->design_load + load;
+        scale = sqrt(s->mass / mass);
+    }
+    excess = force - mass * a_ref;
     last = s->has_last ? s->last : excess;
-    filtered = s->keep * s->filtered + s->gain * (excess - last);
+    keep = s->keep, high = s->gain;
+    if (scale < 1.0) { /* the high-pass corner follows the mode: w_f T / 2 scaled */
+        const double corner = (1.0 - s->keep) / (1.0 + s->keep) * scale;
+        keep = (1.0 - corner) / (1.0 + corner);
+        high = 1.0 / (1.0 + corner);
+    }
+    filtered = keep * s->filtered + high * (excess - last);
     s->filtered = filtered;
     s->last = excess;
     s->has_last = 1;
-    velocity = v_ref + s->kp * (x_ref - x) - s->kf * filtered;
+    velocity = v_ref + scale * (s->kp * (x_ref - x) - s->kf * filtered);
     if (s->compensated) {
         if (velocity >= 0.0) {
             pulled = -force / s->areas[1] - s->p_tank;
@@ -361,7 +374,8 @@ static long one_step(Coupling *c, Loop *loop) {
     }
     if (loop->steps % c->servo_every == 0) {
         for (i = 0; i < 3; i++) {
-            c->servo[i].held = command(&c->servo[i], x_ref[i], v_ref[i], a_ref[i], x[i], f[i]);
+            c->servo[i].held = command(&c->servo[i], x_ref[i], v_ref[i], a_ref[i], x[i], f[i],
+                                       l[i]);
         }
     }
     for (i = 0; i < 3; i++) {
