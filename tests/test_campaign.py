@@ -146,8 +146,11 @@ def test_the_dataframe_has_one_row_per_period(dug):
                                                 "max_abs_acceleration_deg_s2",
                                                 "max_abs_jerk_deg_s3", "tracking_rms_deg")
                  for joint in JOINTS]
+    # The productivity figures a plant without energy signals gives (the test double's).
+    productivity = ["cycle_time_s", "rated_payload_kg", "fill_factor", "productivity_t_h"]
     assert list(frame.columns) == ["t0_s", "y_D_m", "z_D_m", "dz_m", "eps_m", "flag", "reset",
-                                   "mass_kg", "error_kg", "duration_s", "planner_ms", *per_joint]
+                                   "mass_kg", "error_kg", "duration_s", "planner_ms", *per_joint,
+                                   *productivity]
     np.testing.assert_array_equal(frame["mass_kg"], [r["mass_kg"] for r in result.records])
     np.testing.assert_array_equal(frame["z_D_m"],
                                   [r["deepest_point_m"][1] for r in result.records])

@@ -57,9 +57,10 @@ def test_review_plots_draws_every_figure_of_the_lab_run(lab_log, tmp_path):
     # A lab log has no /pile/bucket or /pile/profile (the machine has no pile model to log),
     # so the tip paths and pile profiles, drawn from those, are left out.
     assert names == ["period_02_cylinder_pressures.png", "period_02_joints.png",
-                     "weight_error.png"]
+                     "productivity.png", "weight_error.png"]
     assert not {"/pile/bucket", "/pile/profile"} & set(read_run(lab_log).message_counts)
-    assert sorted(done.stdout.split()[-3:]) == sorted(str(tmp_path / name) for name in names)
+    assert sorted(done.stdout.split()[-len(names):]) == sorted(str(tmp_path / name)
+                                                               for name in names)
     for name in names:
         image = matplotlib.image.imread(tmp_path / name)
         assert image.shape[0] > 300 and image.shape[1] > 500

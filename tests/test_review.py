@@ -105,7 +105,8 @@ def test_plots_are_written_and_show_something(paper_run, tmp_path):
     assert done.exit_code == 0, done.output
     names = sorted(p.name for p in (tmp_path / "figures").iterdir())
     assert names == ["period_02_cylinder_pressures.png", "period_02_joints.png",
-                     "pile_profiles.png", "tip_paths.png", "weight_error.png"]
+                     "pile_profiles.png", "productivity.png", "tip_paths.png",
+                     "weight_error.png"]
     for name in names:
         image = matplotlib.image.imread(tmp_path / "figures" / name)
         assert image.shape[0] > 300 and image.shape[1] > 500

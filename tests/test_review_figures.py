@@ -214,7 +214,7 @@ def test_every_figure_is_written_and_not_blank_for_a_short_run(run, tmp_path):
     written = write_plots(run, tmp_path, period=3)
     assert sorted(p.name for p in written) == [
         "period_03_cylinder_pressures.png", "period_03_joints.png", "pile_profiles.png",
-        "tip_paths.png", "weight_error.png"]
+        "productivity.png", "tip_paths.png", "weight_error.png"]
     for path in written:
         image = matplotlib.image.imread(path)
         assert image.shape[0] > 400 and image.shape[1] > 700

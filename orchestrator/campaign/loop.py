@@ -32,6 +32,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from orchestrator.campaign.heap import frozen_heap
+from orchestrator.campaign.productivity import rated_payload_kg
 from orchestrator.campaign.record import period_record, records_dataframe
 from orchestrator.campaign.resume_state import resume_record
 from orchestrator.campaign.strategy import adaptation_strategy
@@ -235,6 +236,7 @@ def _dig(scenario: Scenario, plant: Plant, log, records: list,
     planner = scenario.period_planner()
     adaptation = adaptation_strategy(scenario, planner)
     step_s = float(getattr(plant, "communication_step_s", scenario.plant.communication_step_s))
+    rated_kg = rated_payload_kg(scenario)  # the fill factor's reference, the same every period
     if start.state is None:
         decision: Decision = adaptation.initial()
     elif start.k < scenario.periods:  # what the run decided after period k, decided again
@@ -270,7 +272,7 @@ def _dig(scenario: Scenario, plant: Plant, log, records: list,
                     pass
             raise
         record = period_record(state, decision, trajectory, measurement,
-                               scenario.target_mass_kg, t0_s)
+                               scenario.target_mass_kg, t0_s, rated_kg)
         if k < scenario.periods:  # before the resume record, which keeps what it learnt
             adaptation.learn(measurement.weighed_mass_kg, measurement.joints_rad)
         if log is not None:

@@ -22,6 +22,14 @@ Keys (angles in the record's own units, per-joint lists in the order boom, stick
                                exact peaks of the planned spline per joint
     tracking_rms_deg           RMS of measured minus reference angle per joint (deg)
     planner_ms                 wall time of the trajectory optimisation (ms)
+    cycle_time_s, rated_payload_kg, fill_factor, productivity_t_h, energy_kj,
+    throttled_energy_kj, throttled_share, energy_per_tonne_kj_t, peak_power_kw, mean_power_kw
+                               the period's productivity figures: its measured duration (s,
+                               the settle included), payload / rated payload, t/h, hydraulic
+                               energy (kJ) and its throttled part, kJ/t, supply power (kW)
+                               (formulas: orchestrator.campaign.productivity); each absent
+                               when the plant does not measure what it needs (no rating, a
+                               cylinder without E_supply, a payload below 1 g for kJ/t)
     via_points_rad             {joint: (5,)} joint via-points (rad)
     segment_durations_s        (4,) durations between via-points (s)
     spline                     {"degree", "knots_s", "coefficients_rad": {joint: (n,)}}: the
@@ -38,6 +46,7 @@ from typing import Any
 
 import numpy as np
 
+from orchestrator.campaign.productivity import PERIOD_KEYS, period_productivity
 from planner.adaptation import AdaptationState, Decision
 from planner.trajectory import JointTrajectory
 from plant_models.plant import JOINTS, PeriodMeasurement
@@ -49,8 +58,10 @@ PER_JOINT = ("max_abs_velocity_deg_s", "max_abs_acceleration_deg_s2", "max_abs_j
 
 def period_record(state: AdaptationState, decision: Decision, trajectory: JointTrajectory,
                   measurement: PeriodMeasurement, target_mass_kg: float,
-                  t0_s: float) -> dict[str, Any]:
-    """The record of period `state.k` (keys: module docstring)."""
+                  t0_s: float, rated_payload_kg: float | None = None) -> dict[str, Any]:
+    """The record of period `state.k` (keys: module docstring). rated_payload_kg: the plant's
+    rated payload (kg; orchestrator.campaign.productivity.rated_payload_kg), None: no fill
+    factor."""
     mass = float(measurement.weighed_mass_kg)
     record = {
         "k": state.k,
@@ -84,6 +95,8 @@ def period_record(state: AdaptationState, decision: Decision, trajectory: JointT
         value = getattr(decision, key)
         if value is not None:
             record[key] = float(value)
+    record.update(period_productivity(measurement.t_s, measurement.signals, mass,
+                                      rated_payload_kg))
     return record
 
 
@@ -116,17 +129,20 @@ def _degrees(values_rad) -> list[float]:
 
 def records_dataframe(records: list[dict[str, Any]]):
     """pandas DataFrame of records, index k: scalars as they are, D as y_D_m and z_D_m, per-joint
-    lists as <name>_<joint>; the strategy's estimates (ESTIMATE_KEYS) when a record has them;
-    via-points, segment durations and the spline are left out."""
+    lists as <name>_<joint>; the strategy's estimates (ESTIMATE_KEYS) and the productivity
+    figures (orchestrator.campaign.productivity.PERIOD_KEYS) when a record has them; via-points,
+    segment durations and the spline are left out."""
     import pandas as pd
 
-    # The terrain strategy's estimates, in the frame of a run that has them only.
+    # The terrain strategy's estimates and the productivity figures (absent from older logs,
+    # the energies from plants that measure none), in the frame of a run that has them only.
     estimates = [key for key in ESTIMATE_KEYS if any(key in record for record in records)]
+    figures = [key for key in PERIOD_KEYS if any(key in record for record in records)]
     rows = []
     for record in records:
         row = {key: record.get(key) for key in ("k", "t0_s", "mass_kg", "error_kg", "reset",
                                                 "flag", "dz_m", "eps_m", "duration_s",
-                                                "planner_ms", *ESTIMATE_KEYS)}
+                                                "planner_ms", *ESTIMATE_KEYS, *PERIOD_KEYS)}
         row["y_D_m"], row["z_D_m"] = record["deepest_point_m"]
         for key in PER_JOINT:
             for joint, value in zip(JOINTS, record[key], strict=True):
@@ -134,5 +150,5 @@ def records_dataframe(records: list[dict[str, Any]]):
         rows.append(row)
     columns = ["k", "t0_s", "y_D_m", "z_D_m", "dz_m", "eps_m", "flag", "reset", "mass_kg",
                "error_kg", *estimates, "duration_s", "planner_ms",
-               *(f"{key}_{joint}" for key in PER_JOINT for joint in JOINTS)]
+               *(f"{key}_{joint}" for key in PER_JOINT for joint in JOINTS), *figures]
     return pd.DataFrame(rows, columns=columns).set_index("k")

@@ -65,6 +65,8 @@ def review_run(path: Path, as_json: bool, plots: Path | None, period: int,
             out.print(line, markup=False, soft_wrap=True)
         tables.show(out, period_grid(run.periods, data["target_mass_kg"]))
         out.print(_figures_line(data["figures"]), markup=False, soft_wrap=True)
+        out.print(productivity_line(data["figures"], data["power_limit_kw"]), markup=False,
+                  soft_wrap=True)
     written: list[Path] = []
     try:
         written += export.write(run, csv.periods, channels, wanted, Path(csv.folder))
@@ -104,6 +106,32 @@ def _figures_line(figures: dict[str, Any]) -> str:
             f"{figures['max_abs_error_kg']:.2f} kg, within ±{figures['band_kg']:g} kg "
             f"{figures['within_band']}/{figures['counted']}; "
             f"{count(figures['resets'], 'reset')}")
+
+
+def productivity_line(figures: dict[str, Any], limit_kw: float | None = None) -> str:
+    """The run's productivity totals in one line (orchestrator.review.productivity); the peak
+    supply power against the pump's limit `limit_kw` (kW) when the scenario sets one."""
+    if figures["productivity_t_h"] is None:
+        return "productivity: not in this log (its records have no cycle times)"
+    f = figures
+    line = (f"productivity {f['productivity_t_h']:.2f} t/h: {f['total_payload_kg']:.1f} kg in "
+            f"{f['digging_time_s']:.1f} s of digging")
+    if f["mean_fill_factor"] is not None:
+        line += f", mean fill factor {f['mean_fill_factor']:.2f}"
+    if f["energy_kj"] is None:
+        return line + "; hydraulic energy not measured (a cylinder books no E_supply)"
+    line += f"; hydraulic energy {f['energy_kj']:.0f} kJ"
+    if f["energy_per_tonne_kj_t"] is not None:
+        line += f", {f['energy_per_tonne_kj_t']:.0f} kJ/t"
+    if f["throttled_share"] is not None:
+        line += f", {100 * f['throttled_share']:.1f} % throttled"
+    if f["peak_power_kw"] is not None:
+        line += f"; supply power peak {f['peak_power_kw']:.1f} kW"
+        if limit_kw is not None:
+            line += f" ({100 * f['peak_power_kw'] / limit_kw:.0f} % of the pump's {limit_kw:g} kW)"
+    if f["mean_power_kw"] is not None:
+        line += f", mean {f['mean_power_kw']:.1f} kW"
+    return line
 
 
 def labels(paths: list[Path]) -> list[str]:
@@ -195,7 +223,8 @@ def compare_grid(names: list[str], summaries: list[dict[str, Any]]) -> tables.Gr
     columns = [c("run", left=True), c("scenario", left=True), c("plant", left=True),
                c("m*", "kg"), c("periods"), c("mean |err|", "kg"), c("max |err|", "kg"),
                c("in band"), c("mean duration", "s"), c("peak jerk", "°/s³"), c("resets"),
-               c("ended", left=True)]
+               c("productivity", "t/h"), c("fill"), c("energy", "kJ/t"), c("throttled", "%"),
+               c("peak power", "kW"), c("mean power", "kW"), c("ended", left=True)]
     rows: list[list[str | Text]] = []
     for label, data in zip(names, summaries, strict=True):
         f = data["figures"]
@@ -203,8 +232,17 @@ def compare_grid(names: list[str], summaries: list[dict[str, Any]]) -> tables.Gr
         rows.append([label, data["scenario"], data["plant"], f"{data['target_mass_kg']:g}",
                      str(f["periods"]), _number(f["mean_abs_error_kg"]),
                      _number(f["max_abs_error_kg"]), within, _number(f["mean_duration_s"]),
-                     _number(f["peak_jerk_deg_s3"], 1), str(f["resets"]), ended(data)])
+                     _number(f["peak_jerk_deg_s3"], 1), str(f["resets"]),
+                     _number(f["productivity_t_h"]), _number(f["mean_fill_factor"]),
+                     _number(f["energy_per_tonne_kj_t"], 0),
+                     _number(None if f["throttled_share"] is None
+                             else 100 * f["throttled_share"], 1),
+                     _number(f["peak_power_kw"], 1), _number(f["mean_power_kw"], 1),
+                     ended(data)])
     return tables.Grid("Runs side by side", columns, rows,
                        caption="errors after period 1; in band: periods 2.. within ±10 % of m* "
                        "(the paper's ±3 kg at 30 kg); duration: planned trajectory per period; "
-                       "peak jerk: largest |jerk| of any joint in any period")
+                       "peak jerk: largest |jerk| of any joint in any period; productivity: t "
+                       "per hour of digging; fill: mean fill factor; energy, throttled, power: "
+                       "the cylinders' hydraulic supply (– where not measured; README: "
+                       "Productivity figures)")

@@ -222,13 +222,16 @@ def _print_table(result) -> None:
                       "per value in overview.png)", markup=False, soft_wrap=True)
             continue
         out.print(f"\n{axis.name}", markup=False)
-        out.print(f"  {'value':>24}  runs  mean|err| kg  worst kg  within band  resets",
-                  markup=False)
+        out.print(f"  {'value':>24}  runs  mean|err| kg  worst kg  within band  resets"
+                  "      t/h     kJ/t", markup=False)
         for s in axis_statistics(result.frame, axis.name):
             mean = "-" if s["mean_abs_error_kg"] is None else f"{s['mean_abs_error_kg']:.2f}"
             worst = "-" if s["worst_abs_error_kg"] is None else f"{s['worst_abs_error_kg']:.2f}"
             share = "-" if s["within_share"] is None else f"{100 * s['within_share']:.0f} %"
             value = json.dumps(s["value"]) if not isinstance(s["value"], str) else s["value"]
+            rate = "-" if s["productivity_t_h"] is None else f"{s['productivity_t_h']:.2f}"
+            per_t = "-" if s["energy_per_tonne_kj_t"] is None \
+                else f"{s['energy_per_tonne_kj_t']:.0f}"
             out.print(f"  {value[-24:]:>24}  {s['runs']:>4}  {mean:>12}  {worst:>8}  "
-                      f"{share:>11}  {s['resets']:>6}", markup=False)
+                      f"{share:>11}  {s['resets']:>6}  {rate:>7}  {per_t:>7}", markup=False)
     out.print(f"\nsummary: {result.parquet}, {result.csv}", markup=False, soft_wrap=True)

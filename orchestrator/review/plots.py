@@ -3,8 +3,8 @@
 `write_plots(run, folder, period)` writes every figure the file has data for and returns what it
 wrote; each `plot_*` function draws one figure and returns the matplotlib Figure (a caller may
 save or show it). Angles in degrees, pressures in bar, lengths in m, masses in kg. The figures
-live in one module each (plots_joints, plots_pile, plots_pressures, plots_weight; shared parts in
-plots_common); this module is the entry point and re-exports them.
+live in one module each (plots_joints, plots_pile, plots_pressures, plots_productivity,
+plots_weight; shared parts in plots_common); this module is the entry point and re-exports them.
 """
 
 from __future__ import annotations
@@ -24,17 +24,18 @@ from orchestrator.review.plots_pile import (
     vertical_stretch,
 )
 from orchestrator.review.plots_pressures import plot_cylinder_pressures
+from orchestrator.review.plots_productivity import has_productivity, plot_productivity
 from orchestrator.review.plots_weight import plot_error_overlay, plot_weight_error, run_labels
 from orchestrator.runlog import RunFile
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["PAPER_TIP_PATH_PERIODS", "PLOT_TOPICS", "lowest_tip_point", "pile_profile_periods",
-           "plot_cylinder_pressures", "plot_error_overlay", "plot_joints", "plot_pile_profiles",
-           "plot_tip_paths", "plot_weight_error", "run_labels", "save_figure", "soil_spans",
-           "tip_path_periods", "tracking_error_deg", "vertical_stretch", "via_times",
-           "write_plots"]
+__all__ = ["PAPER_TIP_PATH_PERIODS", "PLOT_TOPICS", "has_productivity", "lowest_tip_point",
+           "pile_profile_periods", "plot_cylinder_pressures", "plot_error_overlay",
+           "plot_joints", "plot_pile_profiles", "plot_productivity", "plot_tip_paths",
+           "plot_weight_error", "run_labels", "save_figure", "soil_spans", "tip_path_periods",
+           "tracking_error_deg", "vertical_stretch", "via_times", "write_plots"]
 
 # Topics the figures read (`orchestrator.review.summary.load(path, topics=PLOT_TOPICS)`).
 PLOT_TOPICS = ("/joints", *(f"/cylinder/{joint}" for joint in JOINTS), "/pile/bucket",
@@ -51,7 +52,8 @@ def save_figure(fig: Figure, path: Path) -> Path:
 def write_plots(run: RunFile, folder: str | Path, period: int = 1) -> list[Path]:
     """Write every figure the run log has data for into `folder` (created) and return the
     files: period_<k>_joints.png and period_<k>_cylinder_pressures.png for period `period`,
-    weight_error.png, tip_paths.png and pile_profiles.png. `run` must have been read with
+    weight_error.png, tip_paths.png, pile_profiles.png and productivity.png (payload, fill
+    factor, t/h, kJ/t per period; logs with the figures). `run` must have been read with
     topics=PLOT_TOPICS; ValueError if it holds no period or not `period`."""
     n = len(run.periods)
     if not 1 <= period <= n:
@@ -66,6 +68,8 @@ def write_plots(run: RunFile, folder: str | Path, period: int = 1) -> list[Path]
         written.append(save_figure(plot_tip_paths(run), folder / "tip_paths.png"))
     if "/pile/profile" in run.channels:
         written.append(save_figure(plot_pile_profiles(run), folder / "pile_profiles.png"))
+    if has_productivity(run):
+        written.append(save_figure(plot_productivity(run), folder / "productivity.png"))
     if all(f"/cylinder/{joint}" in run.channels for joint in JOINTS):
         written.append(save_figure(plot_cylinder_pressures(run, period),
                                    folder / f"{tag}_cylinder_pressures.png"))

@@ -23,7 +23,7 @@ _MAX_LABEL_KEYS = 3  # differing scenario keys named in a label; more are counte
 _UNLABELLED_KEYS = ("name", "description")
 
 
-def _integer_periods(ax, last_k: int) -> None:
+def integer_periods(ax, last_k: int) -> None:
     """Ticks at whole periods only: every period up to 30, else a whole-number spacing."""
     from matplotlib.ticker import MaxNLocator, MultipleLocator
 
@@ -48,7 +48,7 @@ def plot_weight_error(run: RunFile) -> Figure:
                    label="reset (D moved)" if i == 0 else None)
     ax.set_xlabel("digging period k")
     ax.set_ylabel("dug weight error (kg)")
-    _integer_periods(ax, int(k.max(initial=1)))
+    integer_periods(ax, int(k.max(initial=1)))
     ax.grid(alpha=0.3)
     ax.legend()
     ax.set_title(f"Dug weight error per period (target m* = {target_mass_kg(run):g} kg)")
@@ -143,7 +143,7 @@ def plot_error_overlay(runs: list[RunFile], names: list[str] | None = None) -> F
                               mew=1.5, color="0.4", lw=0.7, label="reset (D moved)"))
     ax.set_xlabel("digging period k")
     ax.set_ylabel("dug weight error m* − m (kg)")
-    _integer_periods(ax, max((r["k"] for run in runs for r in run.periods), default=1))
+    integer_periods(ax, max((r["k"] for run in runs for r in run.periods), default=1))
     ax.grid(alpha=0.3)
     fig.legend(handles=handles, loc="outside lower center", ncol=2, fontsize="small")
     ax.set_title(title)

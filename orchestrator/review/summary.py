@@ -12,6 +12,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from orchestrator.review.productivity import power_limit_kw, run_productivity
 from orchestrator.runlog import RunFile, read_run
 
 WITHIN_KG = 3.0  # the band the paper's Figure 9 holds after period 1 (section 3.2), at m* = 30 kg
@@ -43,7 +44,11 @@ def run_figures(records: list[dict[str, Any]], band_kg: float = WITHIN_KG) -> di
     periods, resets (periods whose D came from a reset), mean_abs_error_kg and
     max_abs_error_kg (None without a period after the first), within_band (periods 2.. with
     |error| <= band_kg), counted (periods 2..), band_kg, mean_duration_s, max_duration_s,
-    peak_jerk_deg_s3 (largest |jerk| of any joint in any period).
+    peak_jerk_deg_s3 (largest |jerk| of any joint in any period); and the run's productivity
+    totals (orchestrator.review.productivity.RUN_KEYS: total_payload_kg, digging_time_s,
+    productivity_t_h, mean_fill_factor, energy_kj, throttled_energy_kj,
+    energy_per_tonne_kj_t, throttled_share, peak_power_kw, mean_power_kw; None where the
+    records lack what they need).
     """
     after = [abs(r["error_kg"]) for r in records if r["k"] >= 2]
     durations = [r["duration_s"] for r in records]
@@ -59,6 +64,7 @@ def run_figures(records: list[dict[str, Any]], band_kg: float = WITHIN_KG) -> di
         "mean_duration_s": math.fsum(durations) / len(durations) if durations else None,
         "max_duration_s": max(durations) if durations else None,
         "peak_jerk_deg_s3": max(jerks) if jerks else None,
+        **run_productivity(records),
     }
 
 
@@ -73,13 +79,16 @@ def summary(run: RunFile) -> dict[str, Any]:
     -> {"fmu", "file", "sha256", "content_sha256", "parameters", "ports"}: which model filled
     each role; content_sha256, the FMU's identity, is absent in older logs), overrides
     (the `--set` items applied to the scenario file), resumed_after_period (the period after
-    which `excosim run --resume` last took the run over; None if it never did).
+    which `excosim run --resume` last took the run over; None if it never did),
+    power_limit_kw (the pump's hydraulic power limit, kW: the scenario's [plant.supply]
+    engine_power_w x pump_efficiency; None when it sets none).
     """
     description = run.metadata["excosim.run"]
     try:
-        text = run.scenario.get("description", "")
+        scenario = run.scenario
     except (KeyError, ValueError):
-        text = ""
+        scenario = {}
+    text = scenario.get("description", "")
     return {
         "path": str(run.path),
         "scenario": description.get("scenario_name", ""),
@@ -97,6 +106,7 @@ def summary(run: RunFile) -> dict[str, Any]:
         "roles": roles(run),
         "overrides": _json_list(description.get("overrides", "[]")),
         "resumed_after_period": _resumed(run),
+        "power_limit_kw": power_limit_kw(scenario),
     }
 
 

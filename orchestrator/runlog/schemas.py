@@ -187,6 +187,19 @@ PERIOD_SUMMARY_SCHEMA: dict = {
         "max_abs_jerk_deg_s3": _triple("deg/s^3"),
         "tracking_rms_deg": _triple("deg"),
         "planner_ms": _number("planner wall time, ms"),
+        # The productivity figures (orchestrator.campaign.productivity), each absent when the
+        # plant does not measure what it needs.
+        "cycle_time_s": _number("measured duration of the period (its samples' span, the "
+                                "settle included), s"),
+        "rated_payload_kg": _number("the bucket's rated payload, kg"),
+        "fill_factor": _number("payload / rated payload"),
+        "productivity_t_h": _number("payload per hour of digging, t/h"),
+        "energy_kj": _number("hydraulic energy from the supply (boom, stick, bucket), kJ"),
+        "throttled_energy_kj": _number("part of it the metering edges and checks made heat, kJ"),
+        "throttled_share": _number("throttled_energy_kj / energy_kj"),
+        "energy_per_tonne_kj_t": _number("hydraulic energy per tonne dug, kJ/t"),
+        "peak_power_kw": _number("peak supply power over a communication step, kW"),
+        "mean_power_kw": _number("energy_kj / cycle_time_s, kW"),
         "via_points_rad": _per_joint("joint via-points per joint, rad"),
         "segment_durations_s": {"type": "array", "items": {"type": "number"},
                                 "description": "durations between via-points, s"},

@@ -3,7 +3,10 @@
 Columns: run; one per axis (its name: the scenario key, "fmu:<roles>" or "scenario"); status
 ("done" or "failed"); termination; the figures of `excosim compare` (periods, resets,
 mean_abs_error_kg, max_abs_error_kg, within_band, counted, band_kg, mean_duration_s,
-max_duration_s, peak_jerk_deg_s3; errors counted from period 2 on); wall_s (s, the run in its
+max_duration_s, peak_jerk_deg_s3; errors counted from period 2 on; the productivity totals
+total_payload_kg, digging_time_s, productivity_t_h, mean_fill_factor, energy_kj,
+throttled_energy_kj, energy_per_tonne_kj_t, throttled_share, peak_power_kw, mean_power_kw:
+orchestrator.review.productivity); wall_s (s, the run in its
 worker, plant set-up included); message (the log's end line); error (why a run failed); log
 (path relative to the sweep's folder); log_sha256; fmus (JSON, role -> FMU content hash);
 worker (host:pid of the process that ran it).
@@ -20,6 +23,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from orchestrator.review.productivity import MIN_PAYLOAD_KG
 from orchestrator.sweep.worker import FIGURES
 
 SUMMARY = "summary"  # file stem of summary.parquet and summary.csv
@@ -77,7 +81,8 @@ def axis_statistics(frame, axis: str) -> list[dict[str, Any]]:
     """Weight-error statistics per value of one axis, over the periods the runs dug (a failed
     run's periods before its failure count too): value, runs, mean_abs_error_kg (mean over
     runs), worst_abs_error_kg, within_band (sum), counted (sum), within_share (within_band /
-    counted), resets (sum), failed (runs)."""
+    counted), resets (sum), failed (runs); and the productivity of the value's runs together
+    (`productivity`)."""
     out = []
     for value, group in frame.groupby(axis, sort=False, dropna=False):
         done = group[group["counted"].fillna(0) > 0]
@@ -91,8 +96,39 @@ def axis_statistics(frame, axis: str) -> list[dict[str, Any]]:
             "within_share": within / counted if counted else None,
             "resets": int(done["resets"].fillna(0).sum()),
             "failed": int((group["status"] != "done").sum()),
+            **productivity(group),
         })
     return out
+
+
+def productivity(group) -> dict[str, float | None]:
+    """The productivity of runs together, as of one run that dug all their periods (the totals
+    summed first, then divided: a long run weighs more than a short one): productivity_t_h
+    (t per hour of digging), energy_per_tonne_kj_t, throttled_share, peak_power_kw (the
+    largest), mean_power_kw (kW). None where no run has the figure (logs before it, a plant
+    without energies); runs without it are left out of the sums."""
+    payload_kg, time_s = _sums(group, "total_payload_kg", "digging_time_s")
+    energy_kj, payload_e_kg = _sums(group, "energy_kj", "total_payload_kg")
+    throttled_kj, energy_t_kj = _sums(group, "throttled_energy_kj", "energy_kj")
+    energy_p_kj, time_p_s = _sums(group, "energy_kj", "digging_time_s")
+    return {
+        "productivity_t_h": (payload_kg / 1000.0) / (time_s / 3600.0) if time_s > 0 else None,
+        "energy_per_tonne_kj_t": energy_kj / (payload_e_kg / 1000.0)
+        if payload_e_kg >= MIN_PAYLOAD_KG else None,
+        "throttled_share": throttled_kj / energy_t_kj if energy_t_kj > 0 else None,
+        "peak_power_kw": _max(group["peak_power_kw"]) if "peak_power_kw" in group else None,
+        "mean_power_kw": energy_p_kj / time_p_s if time_p_s > 0 else None,
+    }
+
+
+def _sums(group, numerator: str, denominator: str) -> tuple[float, float]:
+    """Sums of two columns over the rows that have both (0.0, 0.0 when none does)."""
+    if numerator not in group or denominator not in group:
+        return 0.0, 0.0
+    pairs = [(float(a), float(b)) for a, b in zip(group[numerator], group[denominator],
+                                                  strict=True)
+             if a is not None and b is not None and not _nan(a) and not _nan(b)]
+    return math.fsum(a for a, _ in pairs), math.fsum(b for _, b in pairs)
 
 
 def _mean(series) -> float | None:

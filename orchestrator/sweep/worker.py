@@ -23,13 +23,15 @@ import time
 from pathlib import Path
 from typing import Any
 
+from orchestrator.review.productivity import RUN_KEYS
 from orchestrator.sweep.plan import RunTask
 
 TOKEN_FILE = ".sweep-token"
 LOG_BYTES = "_log_bytes"  # row key of a log that travels back (not a summary column)
 STEP_TIMEOUT_S = 30.0  # one FMU step that takes longer ends the worker (the run is failed)
 FIGURES = ("periods", "resets", "mean_abs_error_kg", "max_abs_error_kg", "within_band",
-           "counted", "band_kg", "mean_duration_s", "max_duration_s", "peak_jerk_deg_s3")
+           "counted", "band_kg", "mean_duration_s", "max_duration_s", "peak_jerk_deg_s3",
+           *RUN_KEYS)
 
 
 def execute(task: RunTask, token: str) -> dict[str, Any]:
