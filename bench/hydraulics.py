@@ -57,8 +57,8 @@ def figures(log: Path, target_kg: float) -> dict:
         t = fields["t_s"]
         void = (fields["p_A_Pa"] <= 0.0) | (fields["p_B_Pa"] <= 0.0)
         edges = np.flatnonzero(np.diff(np.concatenate([[0], void.astype(int), [0]])))
-        lengths = [t[min(end, len(t) - 1)] - t[start] for start, end in zip(edges[::2],
-                                                                             edges[1::2])]
+        lengths = [t[min(end, len(t) - 1)] - t[start]
+                   for start, end in zip(edges[::2], edges[1::2], strict=True)]
         out["voids"][joint] = (100.0 * float(np.mean(void)), len(lengths),
                                max(lengths, default=0.0))
     supplied = throttled = duration = 0.0
@@ -116,7 +116,7 @@ def main() -> None:
     print(f"{args.scenario.name}, {args.periods} periods, every step logged")
     print("| figure | before | after |\n|---|---|---|")
     for joint in JOINTS:
-        cells = ["%.2f %% (%d episodes, longest %.2f s)" % rows[n]["voids"][joint]
+        cells = ["{:.2f} % ({} episodes, longest {:.2f} s)".format(*rows[n]["voids"][joint])
                  for n in rows]
         print(f"| {joint}: samples with a chamber at 0 Pa | " + " | ".join(cells) + " |")
     limit = ["none" if rows[n]["limit_kw"] is None else f"{rows[n]['limit_kw']:.1f} kW"
@@ -132,7 +132,7 @@ def main() -> None:
     print("| samples beyond 1.5 x the acceleration limit, boom / stick / bucket | " + " | ".join(
         " / ".join(str(v) for v in rows[n]["jumps"]) for n in rows) + " |")
     print("| periods within +-3 kg | " + " | ".join(
-        "%d of %d" % rows[n]["within"] for n in rows) + " |")
+        "{} of {}".format(*rows[n]["within"]) for n in rows) + " |")
 
 
 if __name__ == "__main__":

@@ -257,8 +257,9 @@ class JointServo:
     design_load_kg + load_kg for m a_ref and scales K_p, k_f and the high-pass corner w_f by
     sqrt(design mass / m): the loop keeps its shape relative to the mode (k_f ~ w_h, w_f =
     FILTER_RATIO w_h, and K_p's margins are set by w_h; tests/test_servo.py checks the margins
-    up to 18 times the design's load). Lighter loads keep the design's gains. The step loop (orchestrator.plants.native) feeds
-    each step's reflected inertia, the same it gives the FMU as mass_load.
+    up to 18 times the design's load). Lighter loads keep the design's gains. The step loop
+    (orchestrator.plants.native) feeds each step's reflected inertia, the one it gives the FMU
+    as mass_load.
     """
 
     __slots__ = ("_kp", "_kf", "_keep", "_gain", "_mass", "_filtered", "_last", "_extend",
