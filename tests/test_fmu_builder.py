@@ -156,12 +156,13 @@ def test_compile_error_names_the_file_and_line_and_keeps_the_old_fmu(out_dir, cy
     good = built.read_bytes()
     source = cylinder_copy / "model.c"
     lines = source.read_text().splitlines()
-    lines.insert(40, "int broken = ;")
+    at = lines.index('#include "model.h"') + 1  # code, past the header comment
+    lines.insert(at, "int broken = ;")
     source.write_text("\n".join(lines) + "\n")
     with pytest.raises(fmus.BuildError) as error:
         fmus.build_model(cylinder_copy)
     message = str(error.value)
-    assert "HydraulicCylinder: gcc failed" in message and "model.c:41" in message
+    assert "HydraulicCylinder: gcc failed" in message and f"model.c:{at + 1}" in message
     assert "error" in message and "Traceback" not in message
     assert built.read_bytes() == good  # untouched
     assert list(out_dir.glob("HydraulicCylinder-*")) == [built.parent]  # nothing half-made

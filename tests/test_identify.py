@@ -30,11 +30,21 @@ def analytic_velocity_gain(preset, joint, command):
     return velocity / command
 
 
+# What the analytic model leaves out, taken off the paper's cylinders for this comparison: the
+# stick's regeneration passage (extending, it adds the rod side's return to the piston side:
+# the identified gain is then 17 % above the valve law's) and the make-up checks sized for the
+# pump (the FMU's default make-up is kept). At the paper's 35 MPa supply the bucket retracting
+# at mid-stroke drifts slowly while it rings; the fit then put the drift into a huge constant
+# and a vanishing decay and took the response for overdamped (zeta 1.0, 98.8 rad/s against
+# 56.8): identify.py now measures the oscillation against the fitted steady part at the end.
+WITHOUT_CIRCUIT = {"regeneration_ratio": 0.0, "k_makeup": 5.0e-9}
+
+
 def identified(preset, joint):
     model = cylinder_model(preset, joint)
     return identify_cylinder(fmus.build("HydraulicCylinder"), {},
-                             design_cylinder_parameters(preset)[joint], model.stroke_m,
-                             COMMUNICATION_STEP_S[preset])
+                             {**design_cylinder_parameters(preset)[joint], **WITHOUT_CIRCUIT},
+                             model.stroke_m, COMMUNICATION_STEP_S[preset])
 
 
 @pytest.mark.parametrize("joint", ["stick", "bucket"])

@@ -41,9 +41,10 @@ def renamed_cylinder(tmp_path_factory):
 
 
 def run_cylinder(spec, n=400):
-    """Drive one cylinder through the master; (n, 5) outputs in role order x, v, p_A, p_B, F."""
+    """Drive one cylinder through the master; (n, 7) outputs in role order x, v, p_A, p_B, F,
+    E_supply, E_throttling."""
     t = np.arange(n) * STEP
-    rows = np.empty((n, 5))
+    rows = np.empty((n, 7))
     with Master({"boom": ("cylinder", spec)}, STEP, {"boom": {"x0": 0.6, "F_ext": 2e4}}) as m:
         boom = m["boom"]
         for k in range(n):

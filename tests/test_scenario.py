@@ -90,8 +90,8 @@ MISTAKES = [
     ('[plant.stick.ports]\nx = "u"', [], "plant.stick.ports.x: role 'x' needs a Real output, but "
      "variable 'u' of HydraulicCylinder is a Real input"),
     ('[plant.bucket.ports]\nstroke = "x"', [], "plant.bucket.ports.stroke: port map names unknown "
-     "role 'stroke'; cylinder roles: u, F_ext, mass_load, p_pump, p_LS, x, v, p_A, p_B, F, x0, "
-     "A_A, A_B"),
+     "role 'stroke'; cylinder roles: u, F_ext, mass_load, p_pump, p_LS, x, v, p_A, p_B, F, "
+     "E_supply, E_throttling, x0, A_A, A_B"),
     ('[plant.boom.ports]\nx0 = "x"', [], "plant.boom.ports.x0: role 'x0' maps to variable 'x' "
      "has causality output in HydraulicCylinder; only parameters and inputs can be set"),
     ("", ["periods=five"], "periods: expected an integer, got 'five'"),

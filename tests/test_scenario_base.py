@@ -91,8 +91,8 @@ def test_a_swapped_fmu_drops_the_base_files_parameters_it_lacks():
 @pytest.mark.parametrize("overrides, message", [
     (['plant.supply.kind="pump"'], "unknown supply kind 'pump'"),
     (["plant.supply.margin_pa=40e6"], "margin_pa must be below cutoff_pa"),
-    (["plant.supply.cutoff_pa=35e6"], "plant.boom: the pump's cut-off 35 MPa is above the "
-                                      "valve's p_supply 30 MPa"),
+    (["plant.supply.cutoff_pa=38e6"], "plant.boom: the pump's cut-off 38 MPa is above the "
+                                      "valve's p_supply 35 MPa"),
     (['plant.kind="lab"'], "supply kind 'load_sensing' applies to plant kind \"sim\" only"),
 ])
 def test_a_wrong_supply_is_one_line(overrides, message):

@@ -30,9 +30,9 @@ PAPER = ROOT / "scenarios" / "paper-2020.toml"
 
 @pytest.mark.parametrize(("overrides", "field", "reason"), [
     (["target_mass_kg=95"], "target_mass_kg",
-     "95 kg is more than the bucket holds: density x capacity = 1600 kg/m^3 x 0.046284 m^3 = "
-     "74.05 kg"),
-    (["plant.pile.parameters.density=500"], "target_mass_kg", "= 23.14 kg"),
+     "95 kg is more than the bucket holds: density x capacity = 1600 kg/m^3 x 0.047562 m^3 = "
+     "76.1 kg"),
+    (["plant.pile.parameters.density=500"], "target_mass_kg", "= 23.78 kg"),
     (["adaptation.z_D0_m=0.05"], "adaptation.z_D0_m",
      "0.05 m is not below the ground at y_D0_m = -9 m (z = 0 m)"),
     (["plant.pile.parameters.heap_height=0.5", "plant.pile.parameters.heap_center_y=-9",
@@ -97,8 +97,17 @@ def test_the_substep_count_is_the_fmus_own(capfd):
     beyond its own limit of 1e8 substeps per step it refuses the step."""
     paper_boom = {k: v for k, v in default_config("paper").boom.parameters.items()}
     boom = {**_declared("HydraulicCylinder"), **paper_boom}
-    assert rk4_substeps(boom, 0.01) == 43  # the paper's boom at its 10 ms step
-    for parameters, step_s in ((paper_boom, 0.01), ({"mass": 20.0, "beta": 2e9}, 0.02)):
+    # The paper's boom at its 10 ms step: its make-up checks, sized for the pump's flow
+    # (k_makeup 3e-8), set the stiffness bound (43 substeps with the FMU's default 5e-9).
+    assert rk4_substeps(boom, 0.01) == 105
+    stick = {**_declared("HydraulicCylinder"),
+             **default_config("paper").stick.parameters, "n_substeps": 1}
+    assert stick["regeneration_ratio"] == 0.5  # its passage enters the bound too
+    assert rk4_substeps(stick, 0.01) > rk4_substeps({**stick, "regeneration_ratio": 0.0}, 0.01)
+    paper_stick = dict(default_config("paper").stick.parameters)
+    for parameters, step_s in ((paper_boom, 0.01), (paper_stick, 0.01),
+                               ({"mass": 20.0, "beta": 2e9}, 0.02),
+                               ({"mass": 20.0, "meter_out_ratio": 2.0, "k_makeup": 0.0}, 0.02)):
         needed = rk4_substeps({**_declared("HydraulicCylinder"), **parameters,
                                "n_substeps": 1}, step_s)
         assert needed > 1

@@ -231,9 +231,12 @@ def _fit_velocity(t: np.ndarray, v: np.ndarray, dt: float) -> tuple[float, float
                                 x_scale=[guess] * 3)
             if best is None or fit.cost < best.cost:
                 best = fit
-    sigma, omega_d, _ = best.x
+    sigma, omega_d, rate = best.x
     coefficients = np.linalg.lstsq(_basis(t, *best.x), v, rcond=None)[0]
-    steady = abs(coefficients[0]) or 1.0
+    # The non-oscillating part at the record's end: a slow drift (the hydraulic mode moving
+    # with the stroke) fits as c0 + c3 e^{-rate t} with rate -> 0 and c0 = -c3 huge, so c0
+    # alone is no measure of the steady velocity.
+    steady = abs(coefficients[0] + coefficients[3] * math.exp(-rate * t[-1])) or 1.0
     rms = float(np.sqrt(np.mean(best.fun ** 2)))
     if math.hypot(coefficients[1], coefficients[2]) / steady >= _MIN_OSCILLATION \
             and omega_d > 0.0:

@@ -169,7 +169,10 @@ def rk4_substeps(values: dict[str, float], step_s: float) -> int | None:
     try:
         area_a = math.pi / 4.0 * v["bore"] ** 2
         area_b = math.pi / 4.0 * (v["bore"] ** 2 - v["rod"] ** 2)
-        valve = 1.25 * v["q_rated"] * (1.0 / math.sqrt(v["dp_rated"] * v["dp_laminar"]))
+        # the larger edge plus the regeneration passage twice (model.c's stiffness_terms)
+        edge = max(1.0, float(values.get("meter_out_ratio", 1.0))) \
+            + 2.0 * float(values.get("regeneration_ratio", 0.0))
+        valve = 1.25 * (v["q_rated"] * edge) * (1.0 / math.sqrt(v["dp_rated"] * v["dp_laminar"]))
         k_port = max(v["k_relief"], v["k_makeup"]) if v["p_tank"] > v["dp_makeup"] \
             else v["k_relief"]
         spring = v["beta"] * (area_a ** 2 / v["V_dead_A"] + area_b ** 2 / v["V_dead_B"])
