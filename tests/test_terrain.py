@@ -151,12 +151,13 @@ def test_it_learns_a_lighter_hidden_density_from_the_weighings_alone():
 
 
 def test_told_the_piles_angle_its_predictions_in_the_first_trench_are_unbiased():
-    """Told the Pile's own 45.4 deg on the noise-free paper pile, what a period digs is what it
+    """Told the Pile's own angle on the noise-free paper pile, what a period digs is what it
     predicted, within 1 kg, in periods 3-8 (period 2 rests on the one shallow first cut). The
     arm's path lags its plan and sweeps 1-8 % more area, so a kappa learnt per executed area
     (not per planned area, as planner.terrain does) misses by 1.2-2.6 kg in these periods."""
+    pile_deg = math.degrees(load_scenario(PAPER).plant.pile.parameters["repose_angle"])
     scenario = load_scenario(PAPER, ["adaptation.strategy=terrain", "periods=8",
-                                     "adaptation.assumed_repose_angle_deg=45.4"])
+                                     f"adaptation.assumed_repose_angle_deg={pile_deg}"])
     result = run_campaign(scenario)
     assert result.termination == "periods", result.message
     misses = {r["k"]: round(r["mass_kg"] - r["predicted_mass_kg"], 2)
