@@ -15,8 +15,9 @@ NOT met since the plant's physics was corrected (soil force in the surface frame
 bucket edge, a pose-dependent arm inertia, a slope model that agrees with the soil's
 strength, spill by tilt, a shared load-sensing pump with a power limiter, a stick circuit that
 does not cavitate): the best calibration found (notes in the scenario file) keeps 15 of 18
-periods within +-5 kg, three beyond (periods 2, 5, 16), 14 within +-3 kg. MAX_MISSES and MIN_WITHIN_3_KG pin that, so
-a change that makes it worse fails; the paper's value is PAPER_MAX_MISSES.
+periods within +-5 kg, three beyond (periods 2, 5, 16), 14 within +-3 kg. MAX_MISSES and
+MIN_WITHIN_3_KG pin that, so a change that makes it worse fails; the paper's value is
+PAPER_MAX_MISSES.
 """
 
 from pathlib import Path

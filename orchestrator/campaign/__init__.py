@@ -4,6 +4,6 @@
     result = run_campaign("scenarios/paper-2020.toml", log_path="run.mcap")
 """
 
-from orchestrator.campaign.loop import INTERRUPTED, CampaignResult, run_campaign
+from orchestrator.campaign.loop import INTERRUPTED, CampaignResult, PlantRefused, run_campaign
 
-__all__ = ["INTERRUPTED", "CampaignResult", "run_campaign"]
+__all__ = ["INTERRUPTED", "CampaignResult", "PlantRefused", "run_campaign"]

@@ -156,12 +156,17 @@ def run_campaign(
         on_step_timeout(message) is called from the watchdog's thread; it must end the process
         (the stuck call never returns: `excosim run` exits with status 1).
     A log that cannot be opened (FileExistsError for an existing file, OSError) raises before
-    anything is dug. After that it never raises for a runtime failure: the result's
-    termination is "error" and the log is closed with it. KeyboardInterrupt closes plant and
-    log, then propagates.
+    anything is dug, and so does a plant the scenario's FMUs cannot make (PlantRefused, a
+    ValueError naming the role: a port that does not fit, a load of the wrong sign, a stroke
+    short of the linkage's, a servo without its margins); the plant is built before the log is
+    opened. After that it never raises for a runtime failure: the result's termination is
+    "error" and the log is closed with it. KeyboardInterrupt closes plant and log, then
+    propagates.
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
+    if plant is None:
+        plant = _plant_before_log(scenario, step_timeout_s, on_step_timeout)
     try:
         log = open_run_log(scenario, log_path, overwrite) if log_path is not None else None
     except BaseException:
@@ -170,6 +175,28 @@ def run_campaign(
         raise
     return run_opened(scenario, log, plant, Start(), progress, step_timeout_s, on_step_timeout,
                       Path(log_path) if log_path is not None else None)
+
+
+class PlantRefused(ValueError):
+    """The scenario's FMUs cannot make the plant (one line: "plant.<role>: <why>")."""
+
+
+def _plant_before_log(scenario: Scenario, step_timeout_s: float | None,
+                      on_step_timeout: Callable[[str], None] | None) -> Plant | None:
+    """The scenario's plant, built under the step watchdog; PlantRefused for a ValueError
+    (what the scenario asks of its FMUs); None for any other failure, which the run then meets
+    again and logs as before (an FMU that fails to instantiate is a runtime failure)."""
+    watchdog = StepWatchdog(step_timeout_s, on_step_timeout) \
+        if step_timeout_s and on_step_timeout else contextlib.nullcontext()
+    try:
+        with watchdog:
+            return build_plant(scenario)
+    except ValueError as error:
+        line = str(error).splitlines()[0]
+        role = line.partition(": ")[0]
+        raise PlantRefused(f"plant.{line}" if role in scenario.fmu_specs() else line) from None
+    except Exception:  # noqa: BLE001 - a runtime failure: the run reports it with its log
+        return None
 
 
 @dataclass(frozen=True)

@@ -243,7 +243,7 @@ def _dig(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_json:
 
 def _dig_here(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_json: bool,
               quiet: bool, step_timeout_s: float, resume: Any) -> tuple[str, int] | None:
-    from orchestrator.campaign import run_campaign
+    from orchestrator.campaign import PlantRefused, run_campaign
     from orchestrator.campaign.isolation import end_child
     from orchestrator.campaign.resume import ResumeRefused, resume_campaign
 
@@ -286,6 +286,9 @@ def _dig_here(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_
     except Terminated:
         return _interrupted(log_path, len(done), scenario.periods, reserved,
                             "terminated (SIGTERM)"), TERMINATED_EXIT
+    except PlantRefused as error:  # before the log: the scenario's mistake, nothing written
+        _drop_if_empty(log_path, reserved)
+        return str(error), 2
     except FileExistsError:  # created by someone else since _check_output looked
         return f"output {str(log_path)!r} already exists; remove it or add --force", 2
     except OSError as error:

@@ -56,9 +56,10 @@ import numpy as np
 from orchestrator.plants.arm_coupling import ArmCoupling
 from orchestrator.plants.arm_dynamics import ArmInertia
 from orchestrator.plants.identify import CylinderIdentification
-from orchestrator.plants.master import Master, check_component, port_conversions
+from orchestrator.plants.master import Master, check_component, fmu_path, port_conversions
 from orchestrator.plants.native import NativeCoupling
 from orchestrator.plants.plant_state import ResumableState
+from orchestrator.plants.port_checks import check_cylinder, static_load_n
 from orchestrator.plants.servo_setup import (
     design_servo_cached,
     fmu_description,
@@ -108,12 +109,17 @@ class SimulatedExcavator(ResumableState):
         self._initial_surface: tuple[np.ndarray, np.ndarray] | None = None
         designs, linear_models, identifications, supplied = [], [], [], []
         design_loads: list[float] = []  # kg per joint: the reflected inertia its servo holds
+        static = self.coupling.loads(self.coupling.kinematics(*self._design_strokes()),
+                                     0.0, 0.0, 0.0)  # N per cylinder: the sign test's load
         pump = config.supply
         for index, (joint, spec) in enumerate(zip(JOINT_NAMES, config.cylinders, strict=True)):
             description = fmu_description(joint, spec)
             ports = check_component(joint, "cylinder", spec, description)
             conversions = port_conversions(joint, spec, description, ports)
             stroke = self.coupling.tables[index].stroke_m
+            check_cylinder(joint, fmu_path(spec, joint), ports, spec.parameters, stroke,
+                           static_load_n(static, index), config.communication_step_s,
+                           conversions)
             given = config.cylinder_models[index] if config.cylinder_models else None
             # An explicit model wins; then our HydraulicCylinder's parameters (the paper
             # scenario: unchanged); only an FMU with other parameter names is identified.
@@ -182,12 +188,16 @@ class SimulatedExcavator(ResumableState):
         if config.start_pose_rad is not None:
             self._start(np.asarray(config.start_pose_rad, dtype=float))
 
+    def _design_strokes(self) -> tuple[float, ...]:
+        """The servos' design strokes (m): the config's, else mid-stroke."""
+        return tuple(self.config.design_strokes_m or tuple(
+            0.5 * table.stroke_m for table in self.coupling.tables))
+
     def _reflected_design_inertia(self) -> tuple[float, float, float]:
         """M_ii / r_i^2 (kg) of each joint at the servo design pose (design strokes, else
         mid-stroke): the load inertia each servo is designed for."""
-        strokes = self.config.design_strokes_m or tuple(
-            0.5 * table.stroke_m for table in self.coupling.tables)
-        joints = [self.coupling.joint_state(i, s)[0] for i, s in enumerate(strokes)]
+        joints = [self.coupling.joint_state(i, s)[0]
+                  for i, s in enumerate(self._design_strokes())]
         return tuple(reflected_mass_kg(self.config.geometry, joint, joints)
                      for joint in JOINT_NAMES)
 
