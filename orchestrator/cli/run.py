@@ -264,8 +264,12 @@ def _dig_here(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_
 
             def stuck(message: str) -> None:  # the watchdog's thread; the log is closed
                 bar.stop()
-                line = f"run stopped: {message} (log {log_path} is readable up to period " \
-                    f"{len(done)})"
+                if log_path.exists() and log_path.stat().st_size > 0:
+                    where = f"log {log_path} is readable up to period {len(done)}"
+                else:  # stuck building the plant, before the log
+                    _drop_if_empty(log_path, reserved)
+                    where = "no log was written"
+                line = f"run stopped: {message} ({where})"
                 end_child((line, 1))  # a supervised child: its parent prints it
                 fail(line)
                 sys.stdout.flush()

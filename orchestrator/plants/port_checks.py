@@ -54,13 +54,14 @@ def check_cylinder(role: str, fmu_path: str | Path, ports: Mapping[str, str],
            tuple(sorted(ports.items())), tuple(sorted(conversions.items())), float(stroke_m),
            float(load_n), float(step_s))
     if key not in _CACHE:
-        _CACHE[key] = _problem(path, ports, parameters, stroke_m, load_n, step_s, conversions)
+        _CACHE[key] = _problem(role, path, ports, parameters, stroke_m, load_n, step_s,
+                               conversions)
     if _CACHE[key] is not None:
         raise ValueError(f"{role}: {_CACHE[key]}")
 
 
-def _problem(path: Path, ports, parameters, stroke_m: float, load_n: float, step_s: float,
-             conversions: Mapping[str, PortMap]) -> str | None:
+def _problem(role: str, path: Path, ports, parameters, stroke_m: float, load_n: float,
+             step_s: float, conversions: Mapping[str, PortMap]) -> str | None:
     names = {r: ports.get(r, r) for r in ("u", "F_ext", "x", "x0")}
     identity = PortMap("")
 
@@ -78,8 +79,9 @@ def _problem(path: Path, ports, parameters, stroke_m: float, load_n: float, step
         from fmus.runs import FastSlave
 
         strokes = []
+        # Named as the role: a watchdog that stops a hung instance names it so.
         with FastSlave(path, inputs, [names["x"]], {**start, names["x0"]: fmu("x0", x0)},
-                       "check", None) as slave:
+                       role, None) as slave:
             for k in range(samples):
                 force = load if k >= SETTLE_SAMPLES else 0.0
                 out = slave.step(k * dt, dt, np.array([fmu("u", u), fmu("F_ext", force)]))
