@@ -110,6 +110,7 @@ def arm_coupling_of(scenario: Scenario) -> dict[str, str]:
 def open_run_log(scenario: Scenario, log_path: str | Path, overwrite: bool = False):
     """The MCAP run log of a campaign (orchestrator.runlog.writer.RunLog)."""
     from orchestrator.plants.master import derivation_notes, fmu_path
+    from orchestrator.plants.role_notes import cylinder_notes
     from orchestrator.runlog.writer import RunLog
     from orchestrator.scenario.fmu_paths import ROLE_OF
 
@@ -122,7 +123,7 @@ def open_run_log(scenario: Scenario, log_path: str | Path, overwrite: bool = Fal
                   target_mass_kg=scenario.target_mass_kg, geometry=scenario.geometry(),
                   sample_rate_hz=scenario.log.sample_rate_hz, overrides=scenario.overrides,
                   overwrite=overwrite, derived=derived, background=True,
-                  arm_coupling=arm_coupling_of(scenario))
+                  arm_coupling=arm_coupling_of(scenario), notes=cylinder_notes(scenario))
 
 
 def scenario_source_text(scenario: Scenario) -> str:

@@ -93,7 +93,11 @@ def role_lines(data: dict[str, Any]) -> list[str]:
                      f"{count(len(table.get('parameters', {})), 'parameter')} set"
                      + "".join(f"; {out} derived by the master" for out in derived)
                      + ("; arm coupling explicit" if str(table.get("arm_coupling", "")
-                                                        ).startswith("explicit") else ""))
+                                                        ).startswith("explicit") else "")
+                     + ("; arm inertia not fed" if str(table.get("arm_inertia", "")
+                                                      ).startswith("not fed") else "")
+                     + ("; off the shared pump" if str(table.get("supply", "")
+                                                      ).startswith("its own supply") else ""))
     if data["overrides"]:
         lines.append("  --set " + " --set ".join(data["overrides"]))
     return lines

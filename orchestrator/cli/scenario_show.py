@@ -27,15 +27,18 @@ def flat_lines(data: Any, prefix: str = "") -> list[str]:
 
 def plant_roles(scenario: Scenario) -> dict[str, dict[str, Any]]:
     """role -> {"fmu", "file", "sha256", "parameters", "derived", and for a cylinder of a
-    simulated plant "arm_coupling"} of the resolved scenario ("derived": output -> how the
-    master computes it for an FMU that lacks it; "arm_coupling": how the step loop couples the
-    arm's cross inertia into it, orchestrator.plants.native.arm_coupling_notes)."""
+    simulated plant "arm_coupling", "arm_inertia", "supply"} of the resolved scenario
+    ("derived": output -> how the master computes it for an FMU that lacks it; "arm_coupling":
+    how the step loop couples the arm's cross inertia into it,
+    orchestrator.plants.native.arm_coupling_notes; the others orchestrator.plants.role_notes)."""
     from orchestrator.campaign.loop import arm_coupling_of
     from orchestrator.plants.master import derivation_notes, fmu_path
+    from orchestrator.plants.role_notes import cylinder_notes
     from orchestrator.scenario.fmu_paths import ROLE_OF
 
     out = {}
     coupling = arm_coupling_of(scenario)
+    notes = cylinder_notes(scenario)
     for role, spec in scenario.fmu_specs().items():
         path = fmu_path(spec, role)
         out[role] = {"fmu": spec.fmu, "file": str(path),
@@ -44,6 +47,7 @@ def plant_roles(scenario: Scenario) -> dict[str, dict[str, Any]]:
                      "derived": derivation_notes(role, ROLE_OF[role], spec)}
         if role in coupling:
             out[role]["arm_coupling"] = coupling[role]
+        out[role].update(notes.get(role, {}))
     return out
 
 
@@ -132,8 +136,10 @@ def show(path: Path, overrides: list[str], as_json: bool,
                   soft_wrap=True)
         for note in table["derived"].values():
             out.print(f"  derived by the master: {note}", markup=False, soft_wrap=True)
-        if "arm_coupling" in table:
-            out.print(f"  arm coupling: {table['arm_coupling']}", markup=False, soft_wrap=True)
+        for key in ("arm_coupling", "arm_inertia", "supply"):
+            if key in table:
+                out.print(f"  {key.replace('_', ' ')}: {table[key]}", markup=False,
+                          soft_wrap=True)
     if servos:
         out.print("# the servo of each cylinder (design stroke; python-control margins)",
                   markup=False)

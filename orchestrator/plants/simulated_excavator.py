@@ -95,7 +95,7 @@ class SimulatedExcavator(ResumableState):
 
     def __init__(self, config: SimulatedExcavatorConfig) -> None:
         self.config = config
-        self.coupling = _coupling(config.geometry)
+        self.coupling = shared_coupling(config.geometry)
         self.inertia = ArmInertia(config.geometry)
         reflected = self._reflected_design_inertia()
         self._master: Master | None = None
@@ -376,6 +376,6 @@ class SimulatedExcavator(ResumableState):
 
 
 @lru_cache(maxsize=8)
-def _coupling(geometry) -> ArmCoupling:
+def shared_coupling(geometry) -> ArmCoupling:
     """One ArmCoupling per geometry: its tables take a fifth of a second and never change."""
     return ArmCoupling(geometry)

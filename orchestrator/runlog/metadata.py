@@ -129,13 +129,15 @@ def plant_roles(scenario: Mapping, fmus: Mapping[str, tuple[str, bytes]],
                 hashes: Mapping[str, str],
                 derived: Mapping[str, Mapping[str, str]] | None = None,
                 contents: Mapping[str, str] | None = None,
-                arm_coupling: Mapping[str, str] | None = None) -> dict[str, str]:
+                arm_coupling: Mapping[str, str] | None = None,
+                notes: Mapping[str, Mapping[str, str]] | None = None) -> dict[str, str]:
     """role -> JSON {"fmu": as the scenario names it, "file", "sha256" (of the file),
     "content_sha256" (fmu_content), "parameters", "ports", "derived"} of every FMU role: which
     model filled each role, so that a review can tell substitutions apart; "derived":
     {output: how} of the outputs the master computed instead of reading them from the FMU
     ({}: none); "arm_coupling", for a cylinder role of a simulated plant: how the step loop
-    coupled the arm's cross inertia into it."""
+    coupled the arm's cross inertia into it; `notes`: role -> further fields in words (the
+    simulated plant's "arm_inertia" and "supply", orchestrator.plants.role_notes)."""
     plant = scenario.get("plant", {}) if isinstance(scenario, Mapping) else {}
     out = {}
     for role, (file_name, _) in fmus.items():
@@ -147,6 +149,7 @@ def plant_roles(scenario: Mapping, fmus: Mapping[str, tuple[str, bytes]],
                  "derived": dict((derived or {}).get(role, {}))}
         if role in (arm_coupling or {}):
             entry["arm_coupling"] = arm_coupling[role]
+        entry.update((notes or {}).get(role, {}))
         out[role] = to_json(entry, f"role {role}")
     return out
 
@@ -157,7 +160,8 @@ def write_run_description(writer: McapChunkWriter, *, scenario_json: str, scenar
                           geometry: ExcavatorGeometry | None,
                           overrides: list[str] | None = None,
                           derived: Mapping[str, Mapping[str, str]] | None = None,
-                          arm_coupling: Mapping[str, str] | None = None) -> None:
+                          arm_coupling: Mapping[str, str] | None = None,
+                          notes: Mapping[str, Mapping[str, str]] | None = None) -> None:
     """The metadata records and attachments a run log starts with (`orchestrator.runlog.writer`)."""
     versions = package_versions()
     scenario_file, scenario_media = scenario_attachment(scenario_text)
@@ -191,7 +195,7 @@ def write_run_description(writer: McapChunkWriter, *, scenario_json: str, scenar
     writer.add_metadata("excosim.fmus", hashes)
     writer.add_metadata("excosim.fmu_content", contents)
     writer.add_metadata("excosim.roles", plant_roles(json.loads(scenario_json), fmus, hashes,
-                                                     derived, contents, arm_coupling))
+                                                     derived, contents, arm_coupling, notes))
     writer.add_metadata("excosim.fmu_attachments", names)
     if geometry is not None:
         writer.add_metadata("excosim.geometry", {

@@ -101,7 +101,8 @@ class RunLog:
     derived: FMU name -> {output role: how it is derived} for the outputs the master computes
     instead of reading them from the FMU (orchestrator.plants.derived; recorded per role).
     arm_coupling: cylinder role -> how the step loop couples the arm's cross inertia into it
-    (orchestrator.plants.native.arm_coupling_notes; recorded per role).
+    (orchestrator.plants.native.arm_coupling_notes; recorded per role); notes: role -> further
+    fields in words (orchestrator.plants.role_notes; recorded per role).
     transform_rate_hz: rate of /tf (decimated from the samples). sample_rate_hz: rate of the
     high-rate sample channels (None: every sample; see samples.decimated). fsync: also force
     each period to the disk (survives a power loss, not only a killed process; costs a disk
@@ -120,7 +121,8 @@ class RunLog:
                  overwrite: bool = False,
                  derived: Mapping[str, Mapping[str, str]] | None = None,
                  background: bool = False,
-                 arm_coupling: Mapping[str, str] | None = None) -> None:
+                 arm_coupling: Mapping[str, str] | None = None,
+                 notes: Mapping[str, Mapping[str, str]] | None = None) -> None:
         if not (isinstance(target_mass_kg, int | float) and math.isfinite(target_mass_kg)):
             raise ValueError(f"target_mass_kg must be a finite number, got {target_mass_kg!r}")
         if not transform_rate_hz > 0.0:
@@ -144,7 +146,7 @@ class RunLog:
                 self._writer, scenario_json=scenario_json, scenario_text=scenario_text,
                 scenario_name=scenario_name, fmus=fmu_files, plant_kind=plant_kind,
                 target_mass_kg=target_mass_kg, geometry=geometry, overrides=list(overrides),
-                derived=derived, arm_coupling=arm_coupling,
+                derived=derived, arm_coupling=arm_coupling, notes=notes,
             )
             self._writer.flush(fsync, wait=fsync)
         except BaseException:
