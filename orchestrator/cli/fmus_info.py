@@ -119,7 +119,7 @@ def _start(variable) -> Any:
 
 def _role_check(role: str, description, parameter_roles: tuple[str, ...]) -> RoleCheck:
     from orchestrator.plants.derived import derive_outputs
-    from orchestrator.plants.master import not_co_simulation
+    from orchestrator.plants.fmu_support import not_co_simulation
 
     check = RoleCheck(role, ROLE_PARTS[role])
     variables = {v.name: v for v in description.modelVariables}

@@ -80,14 +80,16 @@ def identify_cylinder(fmu_path: str | Path, ports: Mapping[str, str],
                       parameters: Mapping[str, float | int | bool], stroke_m: float,
                       step_s: float, openings: Sequence[float] = OPENINGS,
                       stroke_fractions: Sequence[float] = STROKE_FRACTIONS,
-                      conversions: Mapping[str, PortMap] | None = None
-                      ) -> CylinderIdentification:
+                      conversions: Mapping[str, PortMap] | None = None,
+                      sample_s: float | None = None) -> CylinderIdentification:
     """Identify the linear model of the cylinder FMU at fmu_path (see the module docstring).
 
     ports: role -> FMU variable (roles u, F_ext, x, v, x0; missing roles are their own name);
     parameters: start values (SI); stroke_m (m): the usable stroke; step_s (s): the servo's
     communication step (samples every step_s / 10); conversions: role -> PortMap of ports whose
-    FMU values are not SI (orchestrator.plants.master.port_conversions). Cached by the FMU's
+    FMU values are not SI (orchestrator.plants.master.port_conversions); sample_s (s): the runs'
+    step, default step_s / 10 (an FMU that takes only its own fixed step is run at it). Cached
+    by the FMU's
     sha256, parameters, ports, conversions and settings. ValueError naming the FMU and variable
     when it does not move, gives NaN or fails.
     """
@@ -101,14 +103,15 @@ def identify_cylinder(fmu_path: str | Path, ports: Mapping[str, str],
     conversions = dict(conversions or {})
     key = (digest, tuple(sorted(parameters.items())), tuple(sorted(ports.items())),
            tuple(sorted(conversions.items())), float(stroke_m), float(step_s), tuple(openings),
-           tuple(stroke_fractions))
+           tuple(stroke_fractions), sample_s)
     if key not in _CACHE:
-        _CACHE[key] = _identify(path, content, ports, parameters, stroke_m, step_s,
-                                openings, stroke_fractions, conversions)
+        _CACHE[key] = _identify(path, content, ports, parameters, stroke_m,
+                                sample_s or step_s / SAMPLES_PER_STEP, openings,
+                                stroke_fractions, conversions)
     return _CACHE[key]
 
 
-def _identify(path: Path, content: bytes, ports, parameters, stroke_m: float, step_s: float,
+def _identify(path: Path, content: bytes, ports, parameters, stroke_m: float, dt: float,
               openings, stroke_fractions, conversions) -> CylinderIdentification:
     from fmpy import extract
 
@@ -122,9 +125,8 @@ def _identify(path: Path, content: bytes, ports, parameters, stroke_m: float, st
         for opening in openings:
             for fraction in stroke_fractions:
                 for command in (opening, -opening):
-                    fits.append(_one_run(path, unzip, names, parameters, stroke_m,
-                                         step_s / SAMPLES_PER_STEP, fraction * stroke_m,
-                                         command, conversions))
+                    fits.append(_one_run(path, unzip, names, parameters, stroke_m, dt,
+                                         fraction * stroke_m, command, conversions))
     finally:
         shutil.rmtree(folder, ignore_errors=True)
     smallest = min(abs(c) for c in openings)

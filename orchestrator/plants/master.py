@@ -30,6 +30,7 @@ import numpy as np
 from fmus.descriptions import model_description
 from fmus.runs import REAL_TYPES, FastSlave, NativeStep, fmi_major
 from orchestrator.plants.derived import DerivedOutput, derive_outputs
+from orchestrator.plants.fmu_support import not_co_simulation
 from plant_models.model_spec import (
     CYLINDER_INPUTS,
     DERIVABLE_OUTPUTS,
@@ -62,18 +63,6 @@ def fmu_path(spec: FmuSpec, component: str) -> Path:
         raise ValueError(f"{component}: FMU {spec.fmu!r} is neither one of our models "
                          f"({', '.join(fmus.MODELS)}) nor an existing .fmu file")
     return path
-
-
-def not_co_simulation(description) -> str | None:
-    """Why the master cannot run the FMU of `description` (one line), None when it can: an FMI
-    2.0 or 3.0 FMU with co-simulation (model exchange needs a solver the master does not have)."""
-    version, name = description.fmiVersion, description.modelName
-    if fmi_major(description) is None:
-        return f"{name} is an FMI {version} FMU; the master runs FMI 2.0 and 3.0 co-simulation"
-    if description.coSimulation is None:
-        return (f"{name} is an FMI {version} FMU for model exchange only; the master runs "
-                "co-simulation FMUs (export it with co-simulation, i.e. its own solver)")
-    return None
 
 
 def check_component(component: str, role: str, spec: FmuSpec, description) -> dict[str, str]:

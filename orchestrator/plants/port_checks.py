@@ -39,29 +39,32 @@ _CACHE: dict[tuple, str | None] = {}
 def check_cylinder(role: str, fmu_path: str | Path, ports: Mapping[str, str],
                    parameters: Mapping[str, float | int | bool], stroke_m: float,
                    load_n: float, step_s: float,
-                   conversions: Mapping[str, PortMap] | None = None) -> None:
+                   conversions: Mapping[str, PortMap] | None = None,
+                   sample_s: float | None = None) -> None:
     """Run the module docstring's checks on the FMU at fmu_path for cylinder `role`.
 
     ports: role -> FMU variable (roles u, F_ext, x, x0; a missing role is its own name);
     parameters: start values; stroke_m (m): the linkage's stroke; load_n (N, > 0): the load of
     the sign test (the arm's static load on this cylinder is a fitting size); step_s (s): the
-    communication step; conversions: role -> PortMap of ports whose FMU values are not SI.
+    communication step; conversions: role -> PortMap of ports whose FMU values are not SI;
+    sample_s (s): the step of the checks' runs (default step_s / 10; an FMU that takes only its
+    own fixed step is run at it).
     ValueError (one line, starting with `role`) when the FMU fails one."""
     path = Path(fmu_path)
     content = path.read_bytes()
     conversions = dict(conversions or {})
     key = (hashlib.sha256(content).hexdigest(), tuple(sorted(parameters.items())),
            tuple(sorted(ports.items())), tuple(sorted(conversions.items())), float(stroke_m),
-           float(load_n), float(step_s))
+           float(load_n), float(step_s), sample_s)
     if key not in _CACHE:
-        _CACHE[key] = _problem(role, path, ports, parameters, stroke_m, load_n, step_s,
-                               conversions)
+        _CACHE[key] = _problem(role, path, ports, parameters, stroke_m, load_n,
+                               sample_s or step_s / SAMPLES_PER_STEP, conversions)
     if _CACHE[key] is not None:
         raise ValueError(f"{role}: {_CACHE[key]}")
 
 
 def _problem(role: str, path: Path, ports, parameters, stroke_m: float, load_n: float,
-             step_s: float, conversions: Mapping[str, PortMap]) -> str | None:
+             dt: float, conversions: Mapping[str, PortMap]) -> str | None:
     names = {r: ports.get(r, r) for r in ("u", "F_ext", "x", "x0")}
     identity = PortMap("")
 
@@ -69,7 +72,6 @@ def _problem(role: str, path: Path, ports, parameters, stroke_m: float, load_n: 
         return conversions.get(role, identity).from_si(si)
 
     x_map = conversions.get("x", identity)
-    dt = step_s / SAMPLES_PER_STEP
     inputs = [names["u"], names["F_ext"]]
     start = {**parameters, names["u"]: fmu("u", 0.0), names["F_ext"]: fmu("F_ext", 0.0)}
 

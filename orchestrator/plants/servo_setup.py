@@ -51,17 +51,19 @@ def model_from_fmu(description, parameters) -> CylinderModel | None:
 
 
 def linear_servo(joint: str, spec, stroke_m: float, config: SimulatedExcavatorConfig,
-                  conversions=None, load_mass: dict[str, float] | None = None):
+                  conversions=None, load_mass: dict[str, float] | None = None,
+                  sample_s: float | None = None):
     """(design, linear model, identification or None) of `joint`'s linear servo: on the
     FmuSpec's linear_model, else on the model identified from the FMU (with `load_mass`, the
-    FMU variable taking the arm's reflected inertia -> kg, set during the test)."""
+    FMU variable taking the arm's reflected inertia -> kg, set during the test; `sample_s`, the
+    test's step for an FMU that takes only its own fixed step)."""
     identified = None
     model = spec.linear_model
     if model is None:
         parameters = {**spec.parameters, **(load_mass or {})}
         identified = identify_cylinder(fmu_path(spec, joint), spec.ports, parameters,
                                        stroke_m, config.communication_step_s,
-                                       conversions=conversions)
+                                       conversions=conversions, sample_s=sample_s)
         model = identified.model
     elif not math.isclose(model.stroke_m, stroke_m, rel_tol=0.01):
         raise ValueError(f"{joint}: linear_model.stroke_m {model.stroke_m} m differs from the "

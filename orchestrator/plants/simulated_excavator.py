@@ -55,6 +55,7 @@ import numpy as np
 
 from orchestrator.plants.arm_coupling import ArmCoupling
 from orchestrator.plants.arm_dynamics import ArmInertia
+from orchestrator.plants.fmu_support import check_fixed_step
 from orchestrator.plants.identify import CylinderIdentification
 from orchestrator.plants.master import Master, check_component, fmu_path, port_conversions
 from orchestrator.plants.native import NativeCoupling
@@ -117,9 +118,10 @@ class SimulatedExcavator(ResumableState):
             ports = check_component(joint, "cylinder", spec, description)
             conversions = port_conversions(joint, spec, description, ports)
             stroke = self.coupling.tables[index].stroke_m
+            fixed = check_fixed_step(joint, description, config.communication_step_s)
             check_cylinder(joint, fmu_path(spec, joint), ports, spec.parameters, stroke,
                            static_load_n(static, index), config.communication_step_s,
-                           conversions)
+                           conversions, fixed)
             given = config.cylinder_models[index] if config.cylinder_models else None
             # An explicit model wins; then our HydraulicCylinder's parameters (the paper
             # scenario: unchanged); only an FMU with other parameter names is identified.
@@ -149,8 +151,16 @@ class SimulatedExcavator(ResumableState):
                 supplied.append(None)
             if model is None:
                 load_mass = {ports["mass_load"]: reflected[index]} if "mass_load" in ports else None
-                design, linear, identified = linear_servo(joint, spec, stroke, config,
-                                                           conversions, load_mass)
+                try:
+                    design, linear, identified = linear_servo(joint, spec, stroke, config,
+                                                               conversions, load_mass, fixed)
+                except ValueError as error:
+                    if load_mass is not None:
+                        raise
+                    raise ValueError(f"{error}; its FMU has no mass_load input, so it was "
+                                     f"identified without the {reflected[index]:,.0f} kg the "
+                                     "arm reflects onto its rod at the design pose: map the "
+                                     "FMU's load-mass input as ports.mass_load") from None
                 designs.append(design)
                 linear_models.append(linear)
                 identifications.append(identified)
@@ -180,6 +190,7 @@ class SimulatedExcavator(ResumableState):
         self._columns = _COLUMNS + (_SUPPLY_COLUMNS if pump is not None else ())
         pile_description = fmu_description("pile", config.pile)
         check_component("pile", "pile", config.pile, pile_description)
+        check_fixed_step("pile", pile_description, config.communication_step_s)
         self._profile_names = sorted(
             (v.name for v in pile_description.modelVariables if _PROFILE.match(v.name)),
             key=lambda name: int(_PROFILE.match(name).group(1)))
