@@ -15,7 +15,7 @@ import fmus
 from fmus.runs import FastSlave
 from orchestrator.campaign import run_campaign
 from orchestrator.plants.master import Master
-from orchestrator.review.summary import summary
+from orchestrator.review.summary import differing_roles, summary
 from orchestrator.runlog import read_run
 from orchestrator.scenario import ScenarioError, load_scenario
 from plant_models.model_spec import FmuSpec
@@ -42,9 +42,14 @@ def test_the_paper_scenario_on_fmi3_builds_digs_the_fmi2_masses(tmp_path):
     assert len(runs["fmi3"]) == 3 and all(m > 0.0 for m in runs["fmi3"])
     # Same C sources, same doubles: bit-identical here; the requirement is 1e-9 kg.
     np.testing.assert_allclose(runs["fmi3"], runs["fmi2"], rtol=0.0, atol=1e-9)
-    roles = summary(read_run(tmp_path / "fmi3.mcap"))["roles"]
+    summaries = [summary(read_run(tmp_path / f"{v}.mcap")) for v in ("fmi2", "fmi3")]
+    roles = summaries[1]["roles"]
     assert roles["boom"]["fmu"] == str(fmus.build("HydraulicCylinder", fmi_version=3))
     assert roles["pile"]["file"] == "Pile.fmu"
+    assert (summaries[0]["roles"]["boom"]["fmi_version"], roles["boom"]["fmi_version"]) == \
+        ("2.0", "3.0")
+    # compare says so, beside the other differences of the role
+    assert "FMI version (2.0 | 3.0)" in differing_roles(summaries)["boom"]
 
 
 def test_fastslave_steps_an_fmi3_build_like_its_fmi2_build():

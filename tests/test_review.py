@@ -175,3 +175,18 @@ def test_compare_shows_runs_with_different_noise_seeds_differ(tmp_path):
     assert done.exit_code == 0
     assert "seed1" in done.stdout and "seed2" in done.stdout
     assert (tmp_path / "cmp" / "weight_error_compare.png").stat().st_size > 10_000
+
+
+def test_compare_says_when_the_runs_differ_in_their_numerics(tmp_path):
+    """Runs at another communication step dig other masses for a numerical reason; compare
+    says which setting differs (table and --json), so it is not taken for the plant's."""
+    paths = [tmp_path / "h10.mcap", tmp_path / "h5.mcap"]
+    _campaign(paths[0], "periods=1")
+    _campaign(paths[1], "periods=1", "plant.communication_step_s=0.005")
+    done = runner.invoke(app, ["compare", *map(str, paths), "--json"])
+    assert done.exit_code == 0, done.output
+    assert json.loads(done.stdout)["differing_numerics"] == {
+        "communication_step_s": [0.01, 0.005]}
+    done = runner.invoke(app, ["compare", *map(str, paths)])
+    assert "numerics that differ: communication_step_s 0.01 | 0.005" in \
+        " ".join(done.stdout.split())

@@ -180,7 +180,8 @@ def compare_runs(paths: list[Path], as_json: bool,
             row["errors_kg"] = [r["error_kg"] for r in data["periods"]]
             del row["periods"]
             rows.append(row)
-        print(json_text({"runs": rows, "differing_roles": review.differing_roles(summaries)}))
+        print(json_text({"runs": rows, "differing_roles": review.differing_roles(summaries),
+                         "differing_numerics": review.differing_numerics(summaries)}))
     else:
         out = tables.console()
         tables.show(out, compare_grid(names, summaries))
@@ -201,10 +202,14 @@ def compare_runs(paths: list[Path], as_json: bool,
 def differing_line(summaries: list[dict[str, Any]]) -> str:
     """Which plant roles differ between the runs, and in what (e.g. "boom: FMU; pile: density")."""
     differ = review.differing_roles(summaries)
+    steps = review.differing_numerics(summaries)
+    numeric = "" if not steps else "; numerics that differ: " + ", ".join(
+        f"{key} {' | '.join('–' if v is None else f'{v:g}' for v in values)}"
+        for key, values in steps.items())
     if not differ:
-        return "plant: the same FMUs, ports and parameters in every run"
+        return "plant: the same FMUs, ports and parameters in every run" + numeric
     return "plant roles that differ: " + "; ".join(
-        f"{role}: {', '.join(what)}" for role, what in differ.items())
+        f"{role}: {', '.join(what)}" for role, what in differ.items()) + numeric
 
 
 def _number(value: float | None, digits: int = 2) -> str:

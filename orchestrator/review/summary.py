@@ -81,7 +81,9 @@ def summary(run: RunFile) -> dict[str, Any]:
     (the `--set` items applied to the scenario file), resumed_after_period (the period after
     which `excosim run --resume` last took the run over; None if it never did),
     power_limit_kw (the pump's hydraulic power limit, kW: the scenario's [plant.supply]
-    engine_power_w x pump_efficiency; None when it sets none).
+    engine_power_w x pump_efficiency; None when it sets none), numerics (the scenario's
+    plant.communication_step_s, servo_sample_s, coupling_tolerance_rad_s2 and
+    coupling_max_iterations where it sets them: what a comparison must not mix up silently).
     """
     description = run.metadata["excosim.run"]
     try:
@@ -107,7 +109,25 @@ def summary(run: RunFile) -> dict[str, Any]:
         "overrides": _json_list(description.get("overrides", "[]")),
         "resumed_after_period": _resumed(run),
         "power_limit_kw": power_limit_kw(scenario),
+        "numerics": numerics(scenario),
     }
+
+
+NUMERICS = ("communication_step_s", "servo_sample_s", "coupling_tolerance_rad_s2",
+            "coupling_max_iterations")
+
+
+def numerics(scenario: dict[str, Any]) -> dict[str, Any]:
+    """The scenario's numerical settings of the plant (NUMERICS) that it sets."""
+    plant = scenario.get("plant", {}) if isinstance(scenario, dict) else {}
+    plant = plant if isinstance(plant, dict) else {}
+    return {key: plant[key] for key in NUMERICS if key in plant}
+
+
+def differing_numerics(reviews: list[dict[str, Any]]) -> dict[str, list[Any]]:
+    """setting -> its value per run, for the numerical settings (NUMERICS) that differ."""
+    values = {key: [r.get("numerics", {}).get(key) for r in reviews] for key in NUMERICS}
+    return {key: v for key, v in values.items() if len({json.dumps(x) for x in v}) > 1}
 
 
 def _resumed(run: RunFile) -> int | None:
@@ -166,6 +186,9 @@ def differing_roles(reviews: list[dict[str, Any]]) -> dict[str, list[str]]:
             what.append(f"FMU ({' | '.join(dict.fromkeys(names))})")
         elif len(set(names)) > 1:
             what.append("FMU name (same content)")
+        versions = [t.get("fmi_version") for t in tables]
+        if all(versions) and len(set(versions)) > 1:
+            what.append(f"FMI version ({' | '.join(versions)})")
         if len({json.dumps(t.get("ports", {}), sort_keys=True) for t in tables}) > 1:
             what.append("ports")
         # Parameters set to different values (or left to the FMU's default in some runs); where

@@ -144,6 +144,7 @@ def plant_roles(scenario: Mapping, fmus: Mapping[str, tuple[str, bytes]],
         table = plant.get(role, {}) if isinstance(plant, Mapping) else {}
         table = table if isinstance(table, Mapping) else {}
         entry = {"fmu": table.get("fmu", file_name), "file": file_name,
+                 "fmi_version": fmi_version(fmus[role][1]),
                  "sha256": hashes[role], "content_sha256": (contents or {}).get(role, ""),
                  "parameters": table.get("parameters", {}), "ports": table.get("ports", {}),
                  "derived": dict((derived or {}).get(role, {}))}
@@ -152,6 +153,20 @@ def plant_roles(scenario: Mapping, fmus: Mapping[str, tuple[str, bytes]],
         entry.update((notes or {}).get(role, {}))
         out[role] = to_json(entry, f"role {role}")
     return out
+
+
+def fmi_version(data: bytes) -> str:
+    """The fmiVersion of the FMU file `data` (its modelDescription.xml), "" if unreadable."""
+    import io
+    import xml.etree.ElementTree as ElementTree
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(io.BytesIO(data)) as archive:
+            root = ElementTree.fromstring(archive.read("modelDescription.xml"))
+        return str(root.attrib.get("fmiVersion", ""))
+    except (zipfile.BadZipFile, KeyError, ElementTree.ParseError):
+        return ""
 
 
 def write_run_description(writer: McapChunkWriter, *, scenario_json: str, scenario_text: str,
