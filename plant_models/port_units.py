@@ -70,12 +70,14 @@ class PortMap:
 
 
 def _declared(unit: str, definitions: Mapping[str, object]):
-    """(dimensions, factor, offset) of an FMU's unit from its own definition, else the table."""
+    """(dimensions, factor, offset) of an FMU's unit from its own definition, else the table;
+    dimensions None for a unit the FMU defines in ampere, kelvin, mole or candela (a quantity no
+    role has)."""
     base = getattr(definitions.get(unit), "baseUnit", None)
     if base is not None:
-        dims = (base.kg, base.m, base.s, base.rad)
-        if not (base.A or base.K or base.mol or base.cd):
-            return dims, float(base.factor), float(base.offset)
+        if base.A or base.K or base.mol or base.cd:
+            return None, 1.0, 0.0
+        return (base.kg, base.m, base.s, base.rad), float(base.factor), float(base.offset)
     return KNOWN_UNITS.get(unit)
 
 
@@ -94,8 +96,11 @@ def unit_conversion(role: str, variable, definitions: Mapping[str, object]) -> P
                          f"and offset to {wanted}")
     dims, factor, offset = found
     if dims != KNOWN_UNITS[wanted][0]:
+        defined = " (the FMU defines it in ampere, kelvin, mole or candela)" if dims is None \
+            else ""
         raise ValueError(f"role {role!r} is in {wanted}, but variable {variable.name!r} is in "
-                         f"{unit!r}, another quantity")
+                         f"{unit!r}, another quantity{defined}; map it with an explicit scale "
+                         f"and offset to {wanted}")
     conversion = PortMap(variable.name, factor, offset)
     return None if conversion.identity else conversion
 
@@ -107,7 +112,7 @@ def si_to_declared(value: float, variable, definitions: Mapping[str, object]) ->
     if not unit or unit in _DIMENSIONS:
         return value
     found = _declared(unit, definitions)
-    if found is None:
+    if found is None or found[0] is None:
         return None
     _, factor, offset = found
     return (value - offset) / factor

@@ -57,3 +57,23 @@ def test_a_fixed_step_fmu_runs_only_at_its_step(ours):
         check_fixed_step("bucket", fixed, 0.01)
     fixed.coSimulation.canHandleVariableCommunicationStepSize = True  # any step then
     assert fixed_step_s(fixed) is None
+
+
+def test_a_parameter_of_the_wrong_shape_is_named(ours):
+    """A number for an array parameter (FMI 3.0 dimensions), or a list for a scalar one: the
+    refusal names the parameter and its shape, before any FMU runs."""
+    from orchestrator.plants.master import check_component
+    from plant_models.model_spec import FmuSpec
+
+    arrayed = copy.copy(ours)
+    arrayed.modelVariables = [copy.copy(v) for v in ours.modelVariables]
+    bore = next(v for v in arrayed.modelVariables if v.name == "bore")
+    bore.dimensions = [SimpleNamespace(start=3)]
+    with pytest.raises(ValueError, match=r"^boom: parameter 'bore' of HydraulicCylinder is an "
+                       r"array \(3 values\); give it a list, not 0\.12$"):
+        check_component("boom", "cylinder", FmuSpec("HydraulicCylinder", {"bore": 0.12}),
+                        arrayed)
+    with pytest.raises(ValueError, match=r"^boom: parameter 'rod' of HydraulicCylinder is a "
+                       r"scalar; give it one value, not a list$"):
+        check_component("boom", "cylinder", FmuSpec("HydraulicCylinder", {"rod": [0.1, 0.2]}),
+                        ours)

@@ -46,6 +46,20 @@ def test_a_unit_that_does_not_convert_is_refused(role, unit, message):
         unit_conversion(role, variable("q", unit), {})
 
 
+def test_a_unit_the_fmu_defines_in_ampere_is_another_quantity_not_an_unknown_one():
+    """A spool command in mA, defined by the FMU (<BaseUnit A="1" factor="0.001"/>): the
+    refusal names what it is and what to give, not "a unit the FMU does not define"."""
+    milliampere = SimpleNamespace(baseUnit=SimpleNamespace(kg=0, m=0, s=0, rad=0, A=1, K=0,
+                                                           mol=0, cd=0, factor=1e-3,
+                                                           offset=0.0))
+    with pytest.raises(ValueError) as error:
+        unit_conversion("u", variable("spool", "mA"), {"mA": milliampere})
+    assert str(error.value) == (
+        "role 'u' is in 1, but variable 'spool' is in 'mA', another quantity (the FMU defines "
+        "it in ampere, kelvin, mole or candela); map it with an explicit scale and offset to 1")
+    assert si_to_declared(0.5, variable("spool", "mA"), {"mA": milliampere}) is None
+
+
 @pytest.fixture(scope="module")
 def mm_actuator(tmp_path_factory) -> Path:
     """IdealActuator declared in mm: its physics is linear, so in mm it is the same model."""

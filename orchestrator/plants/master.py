@@ -109,8 +109,9 @@ def check_component(component: str, role: str, spec: FmuSpec, description) -> di
     for port in PARAMETER_ROLES[role]:
         ports[port] = spec.variable(port)
         _check_settable(component, description, variables, ports[port], port)
-    for name in spec.parameters:
+    for name, value in spec.parameters.items():
         _check_settable(component, description, variables, name, None)
+        _check_shape(component, description, variables[name], value)
     port_conversions(component, spec, description, ports)
     derive_outputs(component, role, spec, description, ports)
     return ports
@@ -169,6 +170,21 @@ def _check_settable(component, description, variables, name, port) -> None:
     if variable.causality not in _SETTABLE or variable.variability == "constant":
         raise ValueError(f"{component}: {what} has causality {variable.causality} in "
                          f"{description.modelName}; only parameters and inputs can be set")
+
+
+def _check_shape(component, description, variable, value) -> None:
+    """An array parameter (FMI 3.0 dimensions) takes a list, a scalar one a number."""
+    dimensions = getattr(variable, "dimensions", None) or []
+    is_list = isinstance(value, list | tuple)
+    if dimensions and not is_list:
+        sizes = [getattr(d, "start", None) for d in dimensions]
+        size = " x ".join(str(n) for n in sizes) if all(sizes) else "several"
+        raise ValueError(f"{component}: parameter {variable.name!r} of "
+                         f"{description.modelName} is an array ({size} values); give it a list, "
+                         f"not {value!r}")
+    if is_list and not dimensions:
+        raise ValueError(f"{component}: parameter {variable.name!r} of "
+                         f"{description.modelName} is a scalar; give it one value, not a list")
 
 
 def _affine(roles: Sequence[str], conversions: Mapping[str, PortMap]):
