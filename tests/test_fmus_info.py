@@ -112,3 +112,17 @@ def test_model_exchange_only_fmu(tmp_path):
     report = roles(str(target))
     assert report["kinds"] == ["model exchange"]
     assert invoke("validate", str(target)).exit_code == 1
+
+
+def test_an_array_variable_shows_its_shape_not_every_start_value():
+    """An FMI 3.0 array parameter of 200 values: JSON gives its shape; the text view its shape
+    and ends in one short cell, marked with [] after its name."""
+    from types import SimpleNamespace
+
+    from orchestrator.cli.fmus_info import _shape, _start_text
+
+    table = SimpleNamespace(name="table", dimensions=[SimpleNamespace(start=200)])
+    assert _shape(table) == {"shape": [200]}
+    row = {"start": " ".join(str(float(i)) for i in range(200)), "shape": [200]}
+    assert _start_text(row) == "[200] 0.0 .. 199.0"
+    assert _shape(SimpleNamespace(name="bore")) == {} and _start_text({"start": 0.14}) == "0.14"

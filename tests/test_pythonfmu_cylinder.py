@@ -83,6 +83,20 @@ def test_the_exported_fmu_is_another_tools_and_valid(exported):
                           timeout=120)
     cylinder = json.loads(done.stdout)["roles"]["cylinder"]
     assert not cylinder["fills"] and "u" in cylinder["missing"]  # its own names: a port map
+    # `fmus validate` takes that port map (--ports, or a scenario's with --scenario): then the
+    # only problem left is pythonfmu's InitialUnknowns; a wrong variable is named.
+    ports = {role: {"variable": name, "scale": scale}
+             for role, (name, scale) in {**PORTS, **FORCE}.items()}
+    for mapping, expected in ((ports, "ModelStructure/InitialUnknowns"),
+                              ({**ports, "u": "spool"}, "bucket: role 'u' maps to variable "
+                               "'spool', which PyCylinder does not have")):
+        done = subprocess.run([sys.executable, "-m", "orchestrator.cli.app", "fmus", "validate",
+                               str(exported["force"]), "--role", "bucket", "--ports",
+                               json.dumps(mapping)], capture_output=True, text=True,
+                              timeout=120)
+        lines = done.stdout.strip().splitlines()
+        assert done.returncode == 1 and lines[-1].startswith(expected), done.stdout
+        assert len(lines) == 1 + (expected.startswith("bucket")), lines
 
 
 def test_it_digs_two_paper_periods_in_the_bucket_role_on_its_identified_servo(exported,

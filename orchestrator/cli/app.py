@@ -112,17 +112,18 @@ def fmus_info(
 def fmus_validate(
     target: Annotated[str, typer.Argument(metavar="FMU", help="A .fmu file or one of our model "
                                           "names.")],
-    role: Annotated[str | None, typer.Option("--role", metavar="ROLE",
-                                             help="Role it must fill: cylinder or pile "
-                                             "(default: any).")] = None,
-    fmi3: Annotated[bool, typer.Option("--fmi3", help="For a model name: its FMI 3.0 build.")
-                    ] = False,
+    role: Annotated[str | None, typer.Option("--role", metavar="ROLE", help="cylinder, pile, "
+                                             "boom, stick or bucket (default: any).")] = None,
+    fmi3: Annotated[bool, typer.Option(help="For a model name: its FMI 3.0 build.")] = False,
+    ports: Annotated[str | None, typer.Option(metavar="JSON", help="Port map (JSON, role -> "
+                                              "variable); needs --role.")] = None,
+    scenario: Annotated[str | None, typer.Option(metavar="FILE", help="Use its --role's port "
+                                                 "map and parameters.")] = None,
 ) -> None:
-    """fmpy's validation plus the role checks: exit 0 valid, 1 problems (one per line), 2 not
-    an FMU."""
+    """fmpy's validation plus the role checks: exit 0 valid, 1 problems, 2 not an FMU."""
     from orchestrator.cli.fmus_info import validate_command
 
-    raise typer.Exit(validate_command(target, role, fmi3))
+    raise typer.Exit(validate_command(target, role, fmi3, ports, scenario))
 
 
 @fmus_app.command("demo", cls=Command)

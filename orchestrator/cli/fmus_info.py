@@ -117,6 +117,27 @@ def _start(variable) -> Any:
     return int(number) if variable.type not in _REAL and number.is_integer() else number
 
 
+def _shape(variable) -> dict[str, Any]:
+    """{"shape": [sizes]} of an FMI 3.0 array variable (its start a list of numbers), {} for a
+    scalar."""
+    dimensions = getattr(variable, "dimensions", None) or []
+    if not dimensions:
+        return {}
+    return {"shape": [getattr(d, "start", None) for d in dimensions]}
+
+
+def _start_text(v: dict[str, Any]) -> str:
+    """A variable's start for the text view: an array's as its shape and ends, not all of it."""
+    if v["start"] is None:
+        return ""
+    if "shape" not in v:
+        return repr(v["start"])
+    values = str(v["start"]).split()
+    shape = "x".join(str(n) for n in v["shape"])
+    ends = values[0] if len(values) < 2 else f"{values[0]} .. {values[-1]}"
+    return f"[{shape}] {ends}"
+
+
 def _role_check(role: str, description, parameter_roles: tuple[str, ...]) -> RoleCheck:
     from orchestrator.plants.derived import derive_outputs
     from orchestrator.plants.fmu_support import not_co_simulation
@@ -165,24 +186,43 @@ def inspect_fmu(path: Path) -> FmuInfo:
                                         ("model exchange", description.modelExchange)) if present]
     variables = [{"name": v.name, "causality": v.causality, "variability": v.variability,
                   "type": v.type, "unit": v.unit, "start": _start(v),
-                  "description": v.description} for v in description.modelVariables]
+                  "description": v.description, **_shape(v)}
+                 for v in description.modelVariables]
     roles = [_role_check(role, description, tuple(PARAMETER_ROLES.get(role, ())))
              for role in ROLES]
     return FmuInfo(str(path), description.modelName, description.fmiVersion, kinds, variables,
                    roles)
 
 
-def validate(path: Path, role: str | None = None) -> list[str]:
+PLANT_ROLES = {"boom": "cylinder", "stick": "cylinder", "bucket": "cylinder", "pile": "pile"}
+
+
+def validate(path: Path, role: str | None = None, ports: dict | None = None,
+             parameters: dict | None = None) -> list[str]:
     """Problems of `path`: fmpy's validation, then the role checks (one line each; [] = valid).
 
-    With `role`, the FMU must fill that role; without, at least one role.
+    With `role` (cylinder, pile, or a plant role: boom, stick, bucket, pile), the FMU must fill
+    that role; without, at least one role. With a port map `ports` (role -> FMU variable, or
+    {"variable", "scale", "offset"}) or `parameters`, the FMU is checked as the master checks
+    it under that map (orchestrator.plants.master.check_component), which needs `role`.
     Raises NotAnFmu if it is not an FMU.
     """
     from fmpy.validation import validate_fmu
 
     info = inspect_fmu(path)
     problems = [str(p) for p in validate_fmu(str(path))]
-    checks = [c for c in info.roles if role is None or c.role == role]
+    kind = PLANT_ROLES.get(role or "", role)
+    if ports or parameters:
+        from orchestrator.plants.master import check_component
+        from plant_models.model_spec import FmuSpec
+
+        try:
+            spec = FmuSpec.from_table(str(path), dict(parameters or {}), dict(ports or {}))
+            check_component(role or kind, kind, spec, _read(path))
+        except ValueError as error:
+            problems.append(str(error).splitlines()[0])
+        return problems
+    checks = [c for c in info.roles if kind is None or c.role == kind]
     if not any(c.fills for c in checks):  # report the role it comes closest to filling
         problems += min(checks, key=lambda c: len(c.problems)).problems
     return problems
@@ -191,8 +231,8 @@ def validate(path: Path, role: str | None = None) -> list[str]:
 def _text(info: FmuInfo) -> str:
     lines = [f"{info.model_name}: FMI {info.fmi_version} {', '.join(info.kinds) or 'no kind'}",
              f"  file: {info.path}", "  variables:"]
-    rows = [(v["name"], v["causality"], v["variability"], v["type"], v["unit"] or "",
-             "" if v["start"] is None else repr(v["start"]), v["description"] or "")
+    rows = [(v["name"] + ("[]" if "shape" in v else ""), v["causality"], v["variability"],
+             v["type"], v["unit"] or "", _start_text(v), v["description"] or "")
             for v in info.variables if not v["name"].startswith("h[")]
     arrays = [v["name"] for v in info.variables if v["name"].startswith("h[")]
     widths = [max(len(r[i]) for r in rows) for i in range(6)] if rows else [0] * 6
@@ -232,16 +272,25 @@ def info_command(target: str, as_json: bool = False, fmi3: bool = False) -> int:
     return 0
 
 
-def validate_command(target: str, role: str | None = None, fmi3: bool = False) -> int:
-    """`excosim fmus validate`: 0 valid (prints "valid"), 1 one line per problem, 2 not an FMU."""
+def validate_command(target: str, role: str | None = None, fmi3: bool = False,
+                     ports: str | None = None, scenario: str | None = None) -> int:
+    """`excosim fmus validate`: 0 valid (prints "valid"), 1 one line per problem, 2 not an FMU
+    or a bad option. ports: a JSON object (role -> FMU variable or {"variable", "scale",
+    "offset"}); scenario: a scenario file whose plant `role` gives the port map and
+    parameters."""
     import fmus
 
-    if role is not None and role not in ROLES:
-        _error(f"unknown role {role!r}; roles: {', '.join(ROLES)}")
+    if role is not None and role not in ROLES and role not in PLANT_ROLES:
+        _error(f"unknown role {role!r}; roles: {', '.join([*ROLES, *PLANT_ROLES])}")
+        return 2
+    try:
+        mapping, parameters = _port_map(role, ports, scenario)
+    except ValueError as error:
+        _error(str(error))
         return 2
     try:
         path = resolve(target, fmi3)
-        problems = validate(path, role)
+        problems = validate(path, role, mapping, parameters)
     except NotAnFmu as exc:
         _error(str(exc))
         return 2
@@ -254,6 +303,45 @@ def validate_command(target: str, role: str | None = None, fmi3: bool = False) -
         return 1
     print(f"{path}: valid")
     return 0
+
+
+def _port_map(role: str | None, ports: str | None, scenario: str | None
+              ) -> tuple[dict, dict]:
+    """(port map, parameters) from --ports (JSON) and --scenario (its plant role's); ValueError
+    (one line) for a bad option."""
+    if (ports or scenario) and role is None:
+        raise ValueError("--ports and --scenario need --role (e.g. --role bucket)")
+    mapping: dict = {}
+    parameters: dict = {}
+    if scenario:
+        from orchestrator.scenario import ScenarioError, load_scenario
+
+        if role not in PLANT_ROLES:
+            raise ValueError(f"--scenario needs a plant role (boom, stick, bucket, pile), got "
+                             f"{role!r}")
+        try:
+            spec = load_scenario(scenario).fmu_specs()[role]
+        except (ScenarioError, OSError) as error:
+            raise ValueError(f"--scenario: {error}") from None
+        mapping = {port: name for port, name in spec.ports.items()}
+        mapping.update({port: {"variable": m.variable, "scale": m.scale, "offset": m.offset}
+                        for port, m in spec.port_maps.items()})
+        parameters = dict(spec.parameters)
+    if ports:
+        try:
+            given = json.loads(ports)
+        except ValueError as error:
+            raise ValueError(f"--ports: not a JSON object ({error})") from None
+        if not isinstance(given, dict):
+            raise ValueError("--ports: not a JSON object of role -> FMU variable")
+        for port, value in given.items():
+            if isinstance(value, str) or (isinstance(value, dict)
+                                          and isinstance(value.get("variable"), str)):
+                mapping[port] = value
+            else:
+                raise ValueError(f"--ports: {port}: a variable name or {{\"variable\", "
+                                 f"\"scale\", \"offset\"}}, got {value!r}")
+    return mapping, parameters
 
 
 def _error(message: str) -> None:
