@@ -24,16 +24,14 @@ from orchestrator.cli.conventions import (
     fail,
     version,
 )
+from orchestrator.cli.ssp import export_ssp_command
 from orchestrator.cli.sweep import sweep as sweep_command
 
 app = typer.Typer(
-    cls=Group,
-    name=PROG,
+    cls=Group, name=PROG, no_args_is_help=True, context_settings=HELP_OPTIONS,
     help="Co-simulation of an autonomous excavator that digs to a target weight.",
-    no_args_is_help=True,
     add_completion=False,  # `excosim completion SHELL` instead: no shell detection to fail
     pretty_exceptions_enable=False,
-    context_settings=HELP_OPTIONS,
 )
 fmus_app = typer.Typer(cls=Group, help="Build and try the FMUs (FMI 2.0 and 3.0 co-simulation).",
                        no_args_is_help=True, context_settings=HELP_OPTIONS)
@@ -41,7 +39,7 @@ app.add_typer(fmus_app, name="fmus")
 log_app = typer.Typer(cls=Group, help="Work on run logs as files.", no_args_is_help=True,
                       context_settings=HELP_OPTIONS)
 app.add_typer(log_app, name="log")
-scenario_app = typer.Typer(cls=Group, help="Look at scenarios without running them.",
+scenario_app = typer.Typer(cls=Group, help="Look at scenarios; export their plant (SSP).",
                            no_args_is_help=True, context_settings=HELP_OPTIONS)
 app.add_typer(scenario_app, name="scenario")
 
@@ -273,6 +271,7 @@ def compare(
 
 
 app.command("sweep", cls=Command)(sweep_command)
+scenario_app.command("export-ssp", cls=Command)(export_ssp_command)
 
 
 @app.command("replay", cls=Command)

@@ -21,7 +21,6 @@ raises ScenarioError, a ValueError whose message is one line naming the field, e
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -30,6 +29,14 @@ import numpy as np
 from pydantic import Field, PrivateAttr, StrictInt, StrictStr, ValidationError
 
 from orchestrator.scenario.errors import ScenarioError
+from orchestrator.scenario.files import (
+    PLANT_ROLES,
+    expand_ssp,
+    fmu_of,
+    given_parameters,
+    merge,
+    read_scenario_file,
+)
 from orchestrator.scenario.fmu_paths import resolve_fmus
 from orchestrator.scenario.overrides import apply_overrides
 from orchestrator.scenario.sanity import check_first_period, check_values
@@ -53,8 +60,6 @@ from plant_models import presets
 from plant_models.geometry import ExcavatorGeometry
 from plant_models.model_spec import FmuSpec
 from plant_models.sim_config import SimulatedExcavatorConfig
-
-PLANT_ROLES = ("boom", "stick", "bucket", "pile")
 
 
 class Scenario(Section):
@@ -230,9 +235,6 @@ def _plant_defaults(preset: str) -> dict[str, Any]:
     return plant
 
 
-_MAX_BASES = 8  # base files a scenario may stack (a circle is refused before this)
-
-
 def load_scenario(path: str | Path, overrides: Sequence[str] = (),
                   check_fmus: bool = True) -> Scenario:
     """Read, override (`--set KEY=VALUE` items) and validate a TOML scenario file.
@@ -243,70 +245,22 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = (),
     """
     path = Path(path)
     source = path.name
-    text, data, given = _read_scenario_file(path, ())
+    text, data, given = read_scenario_file(path, ())
     data.setdefault("name", path.stem)
-    named = {role: _fmu_of(data, role) for role in PLANT_ROLES}
+    named = {role: fmu_of(data, role) for role in PLANT_ROLES}
     data = apply_overrides(data, overrides, source)
-    by_set = _given_parameters(apply_overrides({}, overrides, source))  # in any --set form
+    by_set = given_parameters(apply_overrides({}, overrides, source))  # in any --set form
+    data, archived = expand_ssp(data, path, {r: given[r] | by_set[r] for r in PLANT_ROLES},
+                                 source)
     for role in PLANT_ROLES:  # --set swapped the FMU: the files' parameters were for another
-        if _fmu_of(data, role) != named[role]:
+        if fmu_of(data, role) != named[role]:
             given[role] = set()
-        given[role] |= by_set[role]
+        given[role] |= by_set[role] | archived.get(role, set())
     scenario = scenario_from_dict(data, source=source, base_dir=path.resolve().parent,
                                   check_fmus=check_fmus, given=given)
     scenario._source_text = text
     scenario._overrides = tuple(overrides)
     return scenario
-
-
-def _read_scenario_file(path: Path, chain: tuple[Path, ...]
-                        ) -> tuple[str, dict[str, Any], dict[str, set[str]]]:
-    """(the file's text, its data with its `base` merged under it, role -> the FMU parameters
-    the files set for the FMU the role ends up with: a base's parameters for a role whose FMU
-    this file replaces are not counted, so resolve_fmus keeps those the new FMU declares and
-    drops the rest as it does the preset's)."""
-    source = path.name if not chain else f"{chain[0].name} (base {path.name})"
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ScenarioError(str(path), "", "no such scenario file") from None
-    except (OSError, UnicodeDecodeError) as error:
-        raise ScenarioError(str(path), "", f"cannot read the file: {error}") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as error:
-        raise ScenarioError(source, "", f"not valid TOML: {error}") from None
-    base = data.pop("base", None)
-    own = _given_parameters(data)
-    if base is None:
-        return text, data, own
-    if not isinstance(base, str) or not base:
-        raise ScenarioError(source, "base", f"expected a scenario file name, got {base!r}")
-    base_path = (path.parent / base).resolve()
-    if base_path in (*chain, path.resolve()):
-        raise ScenarioError(source, "base", f"{base!r} is this scenario or one it is based on")
-    if len(chain) >= _MAX_BASES:
-        raise ScenarioError(source, "base", f"more than {_MAX_BASES} base files in a row")
-    _, below, given = _read_scenario_file(base_path, (*chain, path.resolve()))
-    below.pop("name", None)
-    merged = _merge(below, data, ())
-    for role in PLANT_ROLES:
-        swapped = _fmu_of(merged, role) != _fmu_of(below, role)
-        given[role] = own[role] if swapped else given[role] | own[role]
-    return text, merged, given
-
-
-def _fmu_of(data: Mapping[str, Any], role: str) -> str:
-    """The FMU a role ends up with in `data`: its table's `fmu`, else the presets' own (both
-    presets run our HydraulicCylinder and Pile)."""
-    fmu = _role_table(data, role).get("fmu")
-    return fmu if isinstance(fmu, str) else ("Pile" if role == "pile" else "HydraulicCylinder")
-
-
-def _role_table(data: Mapping[str, Any], role: str) -> Mapping[str, Any]:
-    plant = data.get("plant")
-    table = plant.get(role) if isinstance(plant, Mapping) else None
-    return table if isinstance(table, Mapping) else {}
 
 
 def scenario_from_dict(data: Mapping[str, Any], *, source: str = "scenario",
@@ -328,12 +282,12 @@ def scenario_from_dict(data: Mapping[str, Any], *, source: str = "scenario",
     preset = machine.get("preset", "paper") if isinstance(machine, Mapping) else "paper"
     if not isinstance(preset, str) or preset not in presets.NAMES:
         preset = "paper"  # validation below names the bad preset
-    merged = _merge(preset_defaults(preset), data, ())
+    merged = merge(preset_defaults(preset), data, ())
     adaptation = merged.get("adaptation")
     if isinstance(adaptation, dict) and not {"centre_fractions", "centres_kg"} & set(adaptation):
         adaptation["centre_fractions"] = list(PAPER_CENTRE_FRACTIONS)
     scenario = _validate(merged, source)
-    given = dict(given) if given is not None else _given_parameters(data)
+    given = dict(given) if given is not None else given_parameters(data)
     if check_fmus:
         resolved = resolve_fmus(scenario.to_dict()["plant"], source,
                                 Path(base_dir) if base_dir is not None else Path.cwd(), given)
@@ -341,32 +295,6 @@ def scenario_from_dict(data: Mapping[str, Any], *, source: str = "scenario",
     check_values(scenario, source, check_fmus, given)
     check_first_period(scenario, source)
     return scenario
-
-
-def _given_parameters(data: Mapping[str, Any]) -> dict[str, set[str]]:
-    """role -> names of the FMU parameters the scenario itself sets (not the preset)."""
-    given: dict[str, set[str]] = {}
-    for role in PLANT_ROLES:
-        parameters = _role_table(data, role).get("parameters")
-        given[role] = set(parameters) if isinstance(parameters, Mapping) else set()
-    return given
-
-
-def _merge(base: Mapping[str, Any], override: Mapping[str, Any], where: tuple) -> dict:
-    """`override` deep-merged over `base`. An FMU table naming another FMU keeps base's
-    parameters (resolve_fmus keeps those the new FMU declares) but not its port map (names of
-    the default FMU's variables)."""
-    merged = dict(base)
-    for key, value in override.items():
-        below = base.get(key)
-        if isinstance(value, Mapping) and isinstance(below, Mapping):
-            if where == ("plant",) and key in PLANT_ROLES and value.get("fmu", below.get("fmu")) \
-                    != below.get("fmu"):
-                below = {"parameters": dict(below.get("parameters", {}))}
-            merged[key] = _merge(below, value, (*where, key))
-        else:
-            merged[key] = value
-    return merged
 
 
 def _validate(data: Mapping[str, Any], source: str) -> Scenario:
