@@ -59,7 +59,11 @@ def fmu_path(spec: FmuSpec, component: str) -> Path:
         except fmus.BuildError as error:
             raise ValueError(f"{component}: cannot build FMU {spec.fmu!r}: {error}") from None
     path = Path(spec.fmu).expanduser()
-    if path.suffix != ".fmu" or not path.is_file():
+    try:
+        found = path.is_file()
+    except OSError:  # a name longer than the file system takes, and the like
+        found = False
+    if path.suffix != ".fmu" or not found:
         raise ValueError(f"{component}: FMU {spec.fmu!r} is neither one of our models "
                          f"({', '.join(fmus.MODELS)}) nor an existing .fmu file")
     return path

@@ -84,8 +84,11 @@ def repair(source: str | Path, target: str | Path) -> RepairReport:
                     writer.add_metadata(record.name, dict(record.metadata))
                 elif isinstance(record, DataEnd):
                     break
-        except (McapError, zstandard.ZstdError, EOFError, struct.error, ValueError, KeyError):
-            truncated = True  # the record being written when the run died: left out
+        except (McapError, zstandard.ZstdError, EOFError, struct.error, ValueError, KeyError,
+                OverflowError, MemoryError):
+            # the record being written when the run died, or damaged bytes whose lengths
+            # overflow or ask for more memory than there is: left out from there on
+            truncated = True
         if not started:
             raise RunLogError(f"{source}: no MCAP header to start the copy from")
         writer.finish()

@@ -50,6 +50,8 @@ def read_scenario_file(path: Path, chain: tuple[Path, ...]
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
         raise ScenarioError(source, "", f"not valid TOML: {error}") from None
+    except RecursionError:  # arrays or tables nested hundreds deep: no scenario has them
+        raise ScenarioError(source, "", "not valid TOML: nested too deeply") from None
     base = data.pop("base", None)
     own = given_parameters(data)
     if base is None:

@@ -45,7 +45,12 @@ def resolve_fmus(plant: dict[str, Any], source: str, base_dir: Path,
         if table["fmu"] not in fmus.MODELS:
             path = Path(table["fmu"]).expanduser()
             path = path if path.is_absolute() else base_dir / path
-            if not path.is_file():
+            try:
+                found = path.is_file()
+            except OSError as error:  # a name longer than the file system takes, and the like
+                raise ScenarioError(source, f"{where}.fmu", f"cannot look at the file: "
+                                    f"{error.strerror or error}") from None
+            if not found:
                 raise ScenarioError(source, f"{where}.fmu", f"no such file {table['fmu']!r} and "
                                     f"no model of that name (models: {', '.join(fmus.MODELS)})")
             _check_archive(path, source, f"{where}.fmu")

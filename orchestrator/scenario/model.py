@@ -39,7 +39,8 @@ from orchestrator.scenario.files import (
 )
 from orchestrator.scenario.fmu_paths import resolve_fmus
 from orchestrator.scenario.overrides import apply_overrides
-from orchestrator.scenario.sanity import check_first_period, check_values
+from orchestrator.scenario.physics_bounds import check_physics
+from orchestrator.scenario.sanity import check_first_period, check_values, resolved_values
 from orchestrator.scenario.sections import (
     AdaptationSection,
     LimitsSection,
@@ -67,7 +68,7 @@ class Scenario(Section):
 
     name: StrictStr = Field(min_length=1)
     description: StrictStr
-    seed: StrictInt = Field(ge=0)
+    seed: StrictInt = Field(ge=0, le=2**63 - 1)  # what a summary table's int64 holds
     periods: StrictInt = Field(ge=1)
     target_mass_kg: Number = Field(gt=0.0)
     machine: MachineSection
@@ -294,6 +295,7 @@ def scenario_from_dict(data: Mapping[str, Any], *, source: str = "scenario",
         scenario = _validate({**scenario.to_dict(), "plant": resolved}, source)
     check_values(scenario, source, check_fmus, given)
     check_first_period(scenario, source)
+    check_physics(scenario, source, *resolved_values(scenario, check_fmus))
     return scenario
 
 

@@ -37,6 +37,8 @@ def parse_override(item: str) -> tuple[list[str], Any]:
         value = tomllib.loads(f"value = {text}")["value"]
     except tomllib.TOMLDecodeError:
         value = text
+    except RecursionError:
+        raise ValueError(f"--set {key}: the value is nested too deeply") from None
     return parts, value
 
 

@@ -198,6 +198,15 @@ def _ground_at(pile: dict[str, float], y: float) -> float:
     return ground
 
 
+def resolved_values(scenario: Any, check_fmus: bool
+                    ) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
+    """(the pile's, {cylinder role: its}) parameter values: the FMU's declared starts with the
+    scenario's over them (numbers only; another tool's FMU's only when check_fmus)."""
+    plant = scenario.plant
+    return _values(plant.pile.spec(), check_fmus), {
+        role: _values(getattr(plant, role).spec(), check_fmus) for role in CYLINDERS}
+
+
 def _values(spec, check_fmus: bool) -> dict[str, Any]:
     """The FMU's declared start values with the spec's parameters over them (numbers only)."""
     values = dict(_declared(spec.fmu, check_fmus))

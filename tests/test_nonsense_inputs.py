@@ -1,0 +1,76 @@
+"""Inputs that described no machine, or crashed with a traceback, are refused in one line naming
+what is wrong (orchestrator.scenario.physics_bounds, the scenario and --set readers, the log
+repair). Each case is a value the generated-input audit found accepted or crashing."""
+
+import random
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from orchestrator.campaign import run_campaign
+from orchestrator.runlog.repair import repair
+from orchestrator.scenario import ScenarioError, load_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+PAPER = ROOT / "scenarios" / "paper-2020.toml"
+
+
+@pytest.mark.parametrize("item, field, words", [
+    ("plant.pile.parameters.y_max=-10", "adaptation.y_D0_m", "lies outside the pile's grid"),
+    ("plant.pile.parameters.y_max=9.2e18", "plant.pile.parameters", "coarser than a quarter"),
+    ("target_mass_kg=1e-9", "target_mass_kg", "less than 1 % of what the bucket holds"),
+    ("adaptation.dz_0_m=-10", "adaptation.dz_0_m", "more than half the bucket's length"),
+    ("adaptation.dz_0_m=1", "adaptation.dz_0_m", "more than half the bucket's length"),
+    ("adaptation.dy_0_m=9.2e18", "adaptation.dy_0_m", "more than the pile's grid is wide"),
+    ("plant.bucket.parameters.V_dead_A=1", "plant.bucket.parameters.V_dead_A",
+     "more than ten times the cylinder's swept volume"),
+    ("plant.pile.parameters.gravity=1e4", "plant.pile.parameters.gravity", "outside 1-25"),
+    ("plant.pile.parameters.heap_height=100", "plant.pile.parameters.heap_height",
+     "higher than the arm reaches"),
+    ("plant.pile.parameters.cohesion=1e12", "plant.pile.parameters.cohesion", "that is rock"),
+    ("log.sample_rate_hz=1e6", "log.sample_rate_hz", "more than one sample per communication"),
+    ("seed=99999999999999999999999", "seed", "less than or equal to 9223372036854775807"),
+])
+def test_physical_nonsense_is_refused_at_load(item, field, words):
+    with pytest.raises(ScenarioError) as error:
+        load_scenario(PAPER, [item])
+    assert error.value.field == field and words in error.value.reason
+
+
+def test_the_bounds_leave_every_shipped_scenario_alone():
+    for path in sorted((ROOT / "scenarios").glob("*.toml")):
+        load_scenario(path)
+
+
+def test_deep_nesting_and_long_paths_are_one_line(tmp_path):
+    nested = tmp_path / "nested.toml"
+    nested.write_text(PAPER.read_text().replace(
+        "[machine]", "zz = " + "[" * 1000 + "]" * 1000 + "\n\n[machine]", 1))
+    with pytest.raises(ScenarioError, match="not valid TOML: nested too deeply"):
+        load_scenario(nested)
+    with pytest.raises(ValueError, match=r"--set periods: the value is nested too deeply"):
+        load_scenario(PAPER, ["periods=" + "[" * 1000 + "]" * 1000])
+    with pytest.raises(ScenarioError, match=r"plant\.boom\.fmu: cannot look at the file"):
+        load_scenario(PAPER, ["plant.boom.fmu=" + "a" * 300 + ".fmu"])
+    done = subprocess.run([sys.executable, "-m", "orchestrator.cli.app", "run", str(nested)],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1
+
+
+def test_a_log_with_bytes_overwritten_mid_file_is_repaired_up_to_the_damage(tmp_path):
+    log = tmp_path / "run.mcap"
+    assert run_campaign(load_scenario(PAPER, ["periods=3"]), log_path=log).termination == \
+        "periods"
+    data = bytearray(log.read_bytes())
+    for seed in range(3):  # 4 kB of noise where lengths and offsets live: no traceback
+        damaged = bytearray(data)
+        start = len(data) // 2 + 5000 * seed
+        noise = random.Random(seed)
+        damaged[start:start + 4096] = bytes(noise.randrange(256) for _ in range(4096))
+        source = tmp_path / f"damaged{seed}.mcap"
+        source.write_bytes(bytes(damaged))
+        report = repair(source, tmp_path / f"repaired{seed}.mcap")
+        assert report.truncated and 1 <= report.periods < 3
