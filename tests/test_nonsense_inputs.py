@@ -74,3 +74,21 @@ def test_a_log_with_bytes_overwritten_mid_file_is_repaired_up_to_the_damage(tmp_
         source.write_bytes(bytes(damaged))
         report = repair(source, tmp_path / f"repaired{seed}.mcap")
         assert report.truncated and 1 <= report.periods < 3
+
+
+def test_review_and_compare_options_that_would_be_ignored_or_create_folders(tmp_path):
+    log = tmp_path / "run.mcap"
+    run_campaign(load_scenario(PAPER, ["periods=1"]), log_path=log)
+
+    def cli(*args):
+        return subprocess.run([sys.executable, "-m", "orchestrator.cli.app", *map(str, args)],
+                              capture_output=True, text=True, timeout=120)
+
+    for period in (0, 99):  # without --plots it picked nothing: now said
+        done = cli("review", log, "--period", period)
+        assert done.returncode == 2 and "add --plots DIR" in done.stderr
+    done = cli("review", log, "--csv", tmp_path / "missing" / "dir" / "x.csv")
+    assert done.returncode == 2 and "does not exist" in done.stderr
+    assert not (tmp_path / "missing").exists()
+    done = cli("compare", log, log)
+    assert done.returncode == 0 and "the same file is given more than once" in done.stdout

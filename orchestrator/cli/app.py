@@ -224,8 +224,9 @@ def review(
         Path | None, typer.Option("--plots", metavar="DIR", help="Write PNG figures into DIR.")
     ] = None,
     period: Annotated[
-        int, typer.Option("--period", metavar="K", help="Period of the per-period figures.")
-    ] = 1,
+        int | None, typer.Option("--period", metavar="K", help="Period of the per-period "
+                                 "figures (with --plots; default 1).")
+    ] = None,
     csv: Annotated[
         Path | None, typer.Option("--csv", metavar="FILE.csv", help="Write the period table "
                                   "as CSV: one row per period.")

@@ -99,8 +99,7 @@ def write(run: RunFile, csv: Path | None, channels: RunFile | None, wanted: list
     `channels` (`read_channels`; into `folder`); the paths written. OSError if a file cannot
     be written."""
     written = []
-    if csv is not None:
-        Path(csv).parent.mkdir(parents=True, exist_ok=True)
+    if csv is not None:  # its folder must exist: a typo must not create folders
         period_frame(run).to_csv(csv)
         written.append(Path(csv))
     if channels is not None and wanted:

@@ -31,7 +31,7 @@ class CsvRequest:
     folder: Path = Path(".")
 
 
-def review_run(path: Path, as_json: bool, plots: Path | None, period: int,
+def review_run(path: Path, as_json: bool, plots: Path | None, period: int | None,
                csv: CsvRequest | None = None) -> tuple[str, int] | None:
     """Print the summary and period table of the run log at `path` (or one JSON object);
     with `plots`, write the figures there for period `period`; with `csv`, write CSV files.
@@ -46,6 +46,11 @@ def review_run(path: Path, as_json: bool, plots: Path | None, period: int,
         channels = export.read_channels(path, wanted) if wanted else None
     except (RunLogError, export.ExportError) as error:
         return str(error), 2
+    if period is not None and plots is None:
+        return f"--period {period}: it picks the period of the --plots figures; add --plots DIR", 2
+    period = 1 if period is None else period
+    if csv.periods is not None and not Path(csv.periods).parent.is_dir():
+        return f"--csv {csv.periods}: the folder {Path(csv.periods).parent} does not exist", 2
     if plots is not None and not 1 <= period <= len(run.periods):
         held = {0: "no complete period", 1: "period 1 only"}.get(
             len(run.periods), f"periods 1-{len(run.periods)}")
@@ -186,6 +191,11 @@ def compare_runs(paths: list[Path], as_json: bool,
         out = tables.console()
         tables.show(out, compare_grid(names, summaries))
         out.print(differing_line(summaries), markup=False, soft_wrap=True)
+        twice = sorted({str(p) for p in paths if sum(q.resolve() == p.resolve() for q in paths)
+                        > 1})
+        if twice:
+            out.print(f"note: the same file is given more than once: {', '.join(twice)}",
+                      markup=False, soft_wrap=True)
     if plots is not None:
         from orchestrator.review.plots import plot_error_overlay, save_figure
 
