@@ -92,3 +92,36 @@ def test_review_and_compare_options_that_would_be_ignored_or_create_folders(tmp_
     assert not (tmp_path / "missing").exists()
     done = cli("compare", log, log)
     assert done.returncode == 0 and "the same file is given more than once" in done.stdout
+
+
+def test_a_worker_that_cannot_see_the_sweeps_fmu_gets_the_one_sent(tmp_path, monkeypatch):
+    """The FMU files sent with a sweep's run: written under the worker's TMPDIR (a file
+    planted there with other content is replaced, not run), and only the FMU roles point at
+    them (plant.supply used to get an `fmu = None` key and every run failed)."""
+    import hashlib
+    import shutil
+    import tempfile
+
+    import fmus
+    from orchestrator.sweep.plan import RunTask
+    from orchestrator.sweep.worker import _scenario
+
+    sent = tmp_path / "sweep" / "Ideal.fmu"
+    sent.parent.mkdir()
+    shutil.copy(fmus.build("IdealActuator"), sent)
+    scenario = load_scenario(PAPER, [f'plant.bucket.fmu="{sent}"'])
+    content = sent.read_bytes()
+    task = RunTask("run-0001", {}, scenario.to_dict(), "paper-2020.toml", "", (),
+                   str(tmp_path / "run-0001.mcap"), {str(sent): content})
+    sent.unlink()  # the worker's file system does not see the sweep's folder
+    worker_tmp = tmp_path / "worker-tmp"
+    worker_tmp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(worker_tmp))
+    digest = hashlib.sha256(content).hexdigest()
+    planted = worker_tmp / "excosim-sweep-fmus" / digest / "Ideal.fmu"
+    planted.parent.mkdir(parents=True)
+    planted.write_bytes(b"not the FMU that was sent")
+    resolved = _scenario(task)
+    assert resolved.plant.bucket.fmu == str(planted)
+    assert planted.read_bytes() == content
+    assert "fmu" not in resolved.to_dict()["plant"]["supply"]

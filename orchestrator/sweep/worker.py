@@ -82,6 +82,9 @@ def _sees_folder(folder: Path, token: str) -> bool:
         return False
 
 
+FMU_ROLES = ("boom", "stick", "bucket", "pile")
+
+
 def _scenario(task: RunTask):
     """The task's Scenario, FMU files materialised where this worker cannot see them."""
     from orchestrator.scenario import scenario_from_dict
@@ -94,15 +97,17 @@ def _scenario(task: RunTask):
         if path.is_file() and hashlib.sha256(path.read_bytes()).hexdigest() == digest:
             continue
         local = Path(tempfile.gettempdir()) / "excosim-sweep-fmus" / digest / path.name
-        if not local.is_file():
+        # A file found there is used only if it is the one sent: anyone may write to TMPDIR.
+        if not (local.is_file() and hashlib.sha256(local.read_bytes()).hexdigest() == digest):
             local.parent.mkdir(parents=True, exist_ok=True)
             partial = local.with_suffix(f".{os.getpid()}.part")
             partial.write_bytes(content)
             partial.replace(local)
         moved[name] = str(local)
-    if moved:
+    if moved:  # the FMU roles only: plant.supply and plant.lab have no FMU
         plant = {role: {**table, "fmu": moved.get(table.get("fmu"), table.get("fmu"))}
-                 if isinstance(table, dict) else table for role, table in data["plant"].items()}
+                 if role in FMU_ROLES and isinstance(table, dict) else table
+                 for role, table in data["plant"].items()}
         data = {**data, "plant": plant}
     scenario = scenario_from_dict(data, source=task.scenario_name)
     scenario._source_text = task.scenario_text or None
