@@ -24,6 +24,7 @@ PAPER = ROOT / "scenarios" / "paper-2020.toml"
     ("adaptation.dz_0_m=-10", "adaptation.dz_0_m", "more than half the bucket's length"),
     ("adaptation.dz_0_m=1", "adaptation.dz_0_m", "more than half the bucket's length"),
     ("adaptation.dy_0_m=9.2e18", "adaptation.dy_0_m", "more than the pile's grid is wide"),
+    ("adaptation.dy_0_m=-25", "adaptation.dy_0_m", "and the arm reaches"),
     ("plant.bucket.parameters.V_dead_A=1", "plant.bucket.parameters.V_dead_A",
      "more than ten times the cylinder's swept volume"),
     ("plant.pile.parameters.gravity=1e4", "plant.pile.parameters.gravity", "outside 1-25"),

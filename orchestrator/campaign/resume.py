@@ -120,7 +120,23 @@ def _prepare(path: Path, run: RunFile, data: bytes) -> ResumeSource:
     except (KeyError, ValueError):
         raise ResumeRefused(f"{path} holds no readable scenario record (excosim.scenario)"
                             ) from None
+    from orchestrator.runlog.records import runs_problem
+
+    problem = runs_problem(run.periods[:k])  # what is copied is checked as review checks it
+    if problem is not None:
+        raise ResumeRefused(f"{path}: {problem}")
+    if not isinstance(scenario_data, dict):
+        raise ResumeRefused(f"{path}: the scenario record (excosim.scenario) is not an object")
     scenario = scenario_from_dict(scenario_data, source=path.name)
+    header = run.metadata.get("excosim.run", {}).get("target_mass_kg")
+    try:
+        edited = header is not None and float(header) != float(scenario.target_mass_kg)
+    except ValueError:
+        edited = True
+    if edited:
+        raise ResumeRefused(f"{path}: its header's target ({header} kg) and its scenario "
+                            f"record's ({scenario.target_mass_kg:g} kg) disagree: the log was "
+                            "edited, and a resumed run would mix two scenarios")
     if k > scenario.periods:
         raise ResumeRefused(f"{path} holds {k} periods, more than its scenario's "
                             f"{scenario.periods}")

@@ -32,7 +32,8 @@ from typing import Any
 
 from orchestrator.campaign import INTERRUPTED
 from orchestrator.review.replay_compare import TOLERANCE, PeriodComparison, compare_periods
-from orchestrator.runlog import RunFile, read_run
+from orchestrator.review.summary import load
+from orchestrator.runlog import RunFile
 from orchestrator.scenario import PLANT_ROLES, ScenarioError
 
 __all__ = ["TOLERANCE", "FmuCheck", "PeriodComparison", "ReplayRefused", "ReplayReport",
@@ -157,7 +158,7 @@ def replay_run(path: str | Path, *, trust: bool = False,
     from orchestrator.scenario import scenario_from_dict
 
     path = Path(path)
-    run = read_run(path, tolerant=True)
+    run = load(path)  # the records checked as review checks them (runlog.records)
     problem = run.not_simulated("be re-simulated")
     if problem is not None:
         raise ReplayRefused(problem)

@@ -13,7 +13,8 @@ from pathlib import Path
 from typing import Any
 
 from orchestrator.review.productivity import power_limit_kw, run_productivity
-from orchestrator.runlog import RunFile, read_run
+from orchestrator.runlog import RunFile, RunLogError, read_run
+from orchestrator.runlog.records import runs_problem
 
 WITHIN_KG = 3.0  # the band the paper's Figure 9 holds after period 1 (section 3.2), at m* = 30 kg
 BAND_FRACTION = WITHIN_KG / 30.0  # the same band for any target: 10 % of m*
@@ -27,8 +28,13 @@ def band_kg(target_mass_kg: float) -> float:
 
 def load(path: str | Path, topics: tuple[str, ...] = ()) -> RunFile:
     """The run log at `path`, read tolerantly (a killed run gives its complete periods);
-    RunLogError (one line) if it is not an excosim run log. topics: numeric channels to decode."""
-    return read_run(path, tolerant=True, topics=topics)
+    RunLogError (one line) if it is not an excosim run log or a period record lacks what the
+    figures read (orchestrator.runlog.records). topics: numeric channels to decode."""
+    run = read_run(path, tolerant=True, topics=topics)
+    problem = runs_problem(run.periods)
+    if problem is not None:
+        raise RunLogError(f"{run.path}: {problem}")
+    return run
 
 
 def target_mass_kg(run: RunFile) -> float:

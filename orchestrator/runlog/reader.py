@@ -25,6 +25,7 @@ from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.records import Attachment, Channel, Metadata, Schema
 
+from orchestrator.runlog import records
 from orchestrator.runlog.decode import DecodeError, decode, numeric_schema
 from orchestrator.runlog.mcap_records import MAGIC
 from orchestrator.runlog.metadata import FORMAT
@@ -172,10 +173,15 @@ class _Scan:
                 (len(self.run.periods) + 1, log_time, bytes(body[_MESSAGE_DATA:])))
 
     def period(self, data: memoryview, log_time: int) -> None:
+        k = len(self.run.periods) + 1
         try:
-            self.run.periods.append(json.loads(bytes(data)))
-        except ValueError:
-            raise RunLogError(f"{self.run.path}: a /period message is not JSON") from None
+            record = records.loads(bytes(data), f"/period record {k}")
+        except ValueError as error:
+            raise RunLogError(f"{self.run.path}: {error}") from None
+        problem = records.period_problem(record, k)
+        if problem is not None:
+            raise RunLogError(f"{self.run.path}: {problem}")
+        self.run.periods.append(record)
         self.run.period_end_ns.append(log_time)
 
     def decode_collected(self) -> None:
@@ -358,6 +364,14 @@ def parse_run(path: Path, data: bytes, tolerant: bool = True, topics: Collection
     if run.metadata.get("excosim.run", {}).get("format") != FORMAT:
         raise RunLogError(f"{path} is an MCAP file but not an excosim run log "
                           "(no excosim.run metadata record)")
+    if "json" in run.metadata.get("excosim.scenario", {}):
+        try:
+            problem = records.scenario_problem(records.loads(
+                run.metadata["excosim.scenario"]["json"], "the scenario record"))
+        except ValueError as error:
+            problem = str(error)
+        if problem is not None:
+            raise RunLogError(f"{path}: {problem}")
     scan.decode_collected()
     end = run.metadata.get("excosim.end")
     run.finished = end is not None

@@ -10,7 +10,8 @@ parameter values of orchestrator.scenario.sanity.resolved_values). Each bound sa
 - the target at least 1 % of what the bucket holds (density x capacity): below that the load
   cell's resolution and the spill, not the adaptation, decide;
 - the first depth step dz_0_m within half the bucket's length either way, and the shift dy_0_m
-  within the pile's grid width (larger steps leave the pile or the arm's reach in one period);
+  within the pile's grid width plus the arm's reach (a larger shift is a number, not a place:
+  a shift off the pile still ends a campaign at its workspace limit, as a test does);
 - a cylinder's dead volumes at most ten times its swept volume (more is hundreds of metres of
   hose: no excavator's valve sits that far from its cylinder);
 - the pile's gravity 1-25 m/s^2 (the Moon's 1.6 to two and a half g), its heap no higher than
@@ -56,10 +57,12 @@ def check_physics(scenario: Any, source: str, pile: dict[str, Any],
                                     f"n_cells), coarser than a quarter of the "
                                     f"{geometry.bucket_length_m:g} m bucket: its cut would not "
                                     "be resolved")
-        if abs(adaptation.dy_0_m) > y_max - y_min:
+        reach = geometry.boom_length_m + geometry.stick_length_m + geometry.bucket_length_m
+        if abs(adaptation.dy_0_m) > y_max - y_min + reach:
             raise ScenarioError(source, "adaptation.dy_0_m",
                                 f"{adaptation.dy_0_m:g} m is more than the pile's grid is wide "
-                                f"({y_max - y_min:g} m)")
+                                f"({y_max - y_min:g} m) and the arm reaches "
+                                f"({reach:.3g} m) together")
     if abs(adaptation.dz_0_m) > 0.5 * geometry.bucket_length_m:
         raise ScenarioError(source, "adaptation.dz_0_m",
                             f"{adaptation.dz_0_m:g} m is more than half the bucket's length "

@@ -1,0 +1,142 @@
+"""A damaged or edited record of a run log is one line naming the record and what is wrong, the
+same in every command that reads it (orchestrator.runlog.records), never a traceback: a /period
+record that is not an object, lacks a key, holds an empty or non-finite figure or is nested too
+deeply, and a scenario record that is not an object. The logs are a real campaign's, with one
+record rewritten through the MCAP library's own reader and writer."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from mcap.records import Attachment, Channel, DataEnd, Header, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader
+from mcap.writer import Writer
+
+from orchestrator.campaign import run_campaign
+from orchestrator.runlog import RunLogError, read_run
+from orchestrator.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+PAPER = ROOT / "scenarios" / "paper-2020.toml"
+
+
+@pytest.fixture(scope="module")
+def log(tmp_path_factory):
+    path = tmp_path_factory.mktemp("records") / "run.mcap"
+    run_campaign(load_scenario(PAPER, ["periods=2"]), log_path=path)
+    return path
+
+
+def rewrite(source: Path, target: Path, period=None, scenario=None,
+            unfinished: bool = False) -> Path:
+    """A copy of the log with /period record 2 (period: old JSON text -> new bytes) or the
+    scenario record (scenario: -> new JSON text) replaced; unfinished: without its end record
+    (a run that was stopped)."""
+    with open(source, "rb") as stream, open(target, "wb") as out:
+        writer = Writer(out)
+        topics, seen = {}, 0
+        for record in StreamReader(stream, emit_chunks=False).records:
+            if isinstance(record, Header):
+                writer.start(profile=record.profile, library=record.library)
+            elif isinstance(record, Schema):
+                writer.register_schema(record.name, record.encoding, record.data)
+            elif isinstance(record, Channel):
+                topics[record.id] = record.topic
+                writer.register_channel(record.topic, record.message_encoding,
+                                        record.schema_id, dict(record.metadata))
+            elif isinstance(record, Message):
+                data = record.data
+                if topics[record.channel_id] == "/period":
+                    seen += 1
+                    if seen == 2 and period is not None:
+                        data = period(data.decode())
+                writer.add_message(record.channel_id, record.log_time, data,
+                                   record.publish_time, record.sequence)
+            elif isinstance(record, Attachment):
+                writer.add_attachment(record.create_time, record.log_time, record.name,
+                                      record.media_type, record.data)
+            elif isinstance(record, Metadata):
+                if unfinished and record.name == "excosim.end":
+                    continue
+                values = dict(record.metadata)
+                if record.name == "excosim.scenario" and scenario is not None:
+                    values["json"] = scenario
+                writer.add_metadata(record.name, values)
+            elif isinstance(record, DataEnd):
+                break
+        writer.finish()
+    return target
+
+
+def _edit(key, value):
+    def change(text: str) -> bytes:
+        record = json.loads(text)
+        if value is KeyError:
+            del record[key]
+        else:
+            record[key] = value
+        return json.dumps(record).encode()
+    return change
+
+
+CASES = [
+    ("null", lambda text: b"null", "/period record 2 is a JSON null, not an object"),
+    ("list", lambda text: b"[1, 2]", "/period record 2 is a JSON array, not an object"),
+    ("no mass", _edit("mass_kg", KeyError), "/period record 2 has no mass_kg"),
+    ("empty jerks", _edit("max_abs_jerk_deg_s3", []),
+     "max_abs_jerk_deg_s3 is [], not three finite numbers"),
+    ("NaN mass", lambda text: text.replace('"mass_kg": ', '"mass_kg": NaN, "x": ').encode(),
+     "mass_kg is nan, not a finite number"),
+    ("huge", lambda text: text.replace('"error_kg": ', '"error_kg": 1e400, "y": ').encode(),
+     "error_kg is inf, not a finite number"),
+    ("nested", lambda text: text[:-1].encode() + b', "deep": ' + b"[" * 100000 +
+     b"]" * 100000 + b"}", "/period record 2 is nested too deeply"),
+]
+
+
+@pytest.mark.parametrize("name, change, message", CASES, ids=[c[0] for c in CASES])
+def test_a_bad_period_record_is_one_line_in_every_command(log, tmp_path, name, change, message):
+    bad = rewrite(log, tmp_path / "bad.mcap", period=change)
+    for command in (["review", bad], ["review", bad, "--json"], ["compare", log, bad],
+                    ["replay", bad, "--json"]):
+        done = subprocess.run([sys.executable, "-m", "orchestrator.cli.app",
+                               *map(str, command)], capture_output=True, text=True, timeout=120)
+        assert done.returncode == 2, (command, done.stderr[-300:])
+        lines = done.stderr.strip().splitlines()
+        assert len(lines) == 1 and message in lines[0], (command, lines)
+        assert "Traceback" not in done.stderr
+
+
+@pytest.mark.parametrize("text, kind", [("null", "null"), ("[]", "array"), ('"x"', "string"),
+                                        ("NaN", "number")])
+def test_a_scenario_record_that_is_not_an_object_is_refused(log, tmp_path, text, kind):
+    bad = rewrite(log, tmp_path / "scenario.mcap", scenario=text)
+    with pytest.raises(RunLogError, match=f"the scenario record .* is a JSON {kind}, not an "
+                       "object"):
+        read_run(bad)
+    done = subprocess.run([sys.executable, "-m", "orchestrator.cli.app", "review", str(bad)],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1
+
+
+def test_the_untouched_copy_reads_as_the_original(log, tmp_path):
+    same = rewrite(log, tmp_path / "same.mcap")
+    assert read_run(same).periods == read_run(log).periods
+
+
+def test_resume_refuses_what_it_would_copy_wrongly(log, tmp_path):
+    """A bad period record, or a scenario record whose target disagrees with the header, is
+    refused in one line before anything is written (exit 2)."""
+    from orchestrator.campaign.resume import ResumeRefused, prepare_resume
+
+    scenario = read_run(log).scenario
+    edited = rewrite(log, tmp_path / "edited.mcap",
+                     scenario=json.dumps({**scenario, "target_mass_kg": 20.0}),
+                     unfinished=True)
+    bad = rewrite(log, tmp_path / "bad.mcap", period=lambda text: b"[1, 2]", unfinished=True)
+    for source, words in ((edited, "its header's target (30.0 kg) and its scenario record's "
+                           "(20 kg) disagree"), (bad, "/period record 2 is a JSON array")):
+        with pytest.raises(ResumeRefused, match=words.replace("(", r"\(").replace(")", r"\)")):
+            prepare_resume(source)
