@@ -126,3 +126,32 @@ def test_a_worker_that_cannot_see_the_sweeps_fmu_gets_the_one_sent(tmp_path, mon
     assert resolved.plant.bucket.fmu == str(planted)
     assert planted.read_bytes() == content
     assert "fmu" not in resolved.to_dict()["plant"]["supply"]
+
+
+def test_folders_of_killed_runs_are_removed_by_the_next(tmp_path, monkeypatch):
+    """A SIGKILL leaves a run's temporary folder; the next run removes those whose owner no
+    longer runs (and that are older than a minute), and leaves the rest alone."""
+    import os
+    import tempfile
+    import time
+
+    from orchestrator.campaign import stale_folders
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True).stdout.strip()
+    old = time.time() - 2 * stale_folders.MIN_AGE_S
+    folders = {}
+    for name, owner, age in (("killed", dead, old), ("running", str(os.getpid()), old),
+                             ("young", dead, None), ("foreign", None, old)):
+        folder = tmp_path / f"excosim-run-{name}"
+        folder.mkdir()
+        if owner is not None:
+            (folder / stale_folders.OWNER_FILE).write_text(owner)
+        if age is not None:
+            os.utime(folder, (age, age))
+        folders[name] = folder
+    assert stale_folders.remove_stale("excosim-run-") == [folders["killed"]]
+    assert [f.exists() for f in folders.values()] == [False, True, True, True]
+    made = stale_folders.owned_folder("excosim-run-")
+    assert (made / stale_folders.OWNER_FILE).read_text() == str(os.getpid())

@@ -48,6 +48,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from orchestrator.campaign.stale_folders import owned_folder, remove_stale
+
+RUN_PREFIX = "excosim-run-"
+
 _PR_SET_PDEATHSIG = 1
 _CHILD_FOLDER: list[Path] = []  # in a supervised child: the folder its outcome goes to
 _FORWARDED = (signal.SIGINT, signal.SIGTERM)
@@ -77,7 +81,8 @@ def supervised(body: Callable[[], Any], log_path: Path, period_offset: int = 0,
     period_offset: periods the log held before the child started (a resumed run), for the
     period named in the message when the log cannot be read; release: called once the child
     has ended, before the log is looked at (e.g. to drop a lock the child inherited)."""
-    folder = Path(tempfile.mkdtemp(prefix="excosim-run-"))
+    remove_stale(RUN_PREFIX)  # what earlier runs killed by SIGKILL left behind
+    folder = owned_folder(RUN_PREFIX)
     try:
         (folder / "tmp").mkdir()
         sys.stdout.flush()

@@ -44,11 +44,15 @@ def execute(task: RunTask, token: str) -> dict[str, Any]:
 
 def _execute(task: RunTask, token: str) -> dict[str, Any]:
     from orchestrator.campaign import run_campaign
+    from orchestrator.campaign.isolation import RUN_PREFIX
+    from orchestrator.campaign.stale_folders import owned_folder, remove_stale
 
     started = time.perf_counter()
     target = Path(task.log_path)
     in_place = _sees_folder(target.parent.parent, token)
-    log_path = target if in_place else Path(tempfile.mkdtemp(prefix="excosim-run-")) / target.name
+    if not in_place:
+        remove_stale(RUN_PREFIX)  # what killed workers left behind
+    log_path = target if in_place else owned_folder(RUN_PREFIX) / target.name
     row: dict[str, Any] = {"run": task.run, **task.point}
     try:
         scenario = _scenario(task)
