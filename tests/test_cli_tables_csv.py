@@ -154,6 +154,7 @@ def test_a_wide_grid_turns_into_blocks_that_fit_and_keep_every_cell():
 
 def test_csv_holds_the_period_table(kinematic_runs, tmp_path):
     target = tmp_path / "out" / "periods.csv"
+    target.parent.mkdir()  # review makes no folders: a mistyped path is refused, not created
     done = CliRunner().invoke(app, ["review", str(kinematic_runs[0]), "--csv", str(target)])
     assert done.exit_code == 0, done.output
     assert done.stdout.rstrip().endswith(str(target))
