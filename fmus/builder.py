@@ -66,7 +66,17 @@ LIBS = ["-lm"]
 
 
 class BuildError(RuntimeError):
-    """An FMU could not be built; the message says why (missing gcc, compile error, bad table)."""
+    """An FMU could not be built; the message says why (missing gcc, compile error, bad table).
+    `exit_status`: 2 when the cause is the user's setting (an FMU folder that cannot be made),
+    1 for a failure of the build itself."""
+
+    exit_status = 1
+
+
+class FolderError(BuildError):
+    """The FMU folder ($EXCOSIM_FMU_DIR) cannot be made: the user's setting."""
+
+    exit_status = 2
 
 
 def model_names() -> list[str]:
@@ -229,7 +239,7 @@ def build_model(model_dir: Path, fmi_version: int = 2) -> Path:
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise BuildError(f"cannot create the FMU folder {out_dir}: {exc}") from None
+        raise FolderError(f"cannot create the FMU folder {out_dir}: {exc}") from None
 
     with tempfile.TemporaryDirectory(prefix=f".{name}-", dir=out_dir) as tmp:
         staging = Path(tmp)

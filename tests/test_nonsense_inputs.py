@@ -155,3 +155,37 @@ def test_folders_of_killed_runs_are_removed_by_the_next(tmp_path, monkeypatch):
     assert [f.exists() for f in folders.values()] == [False, True, True, True]
     made = stale_folders.owned_folder("excosim-run-")
     assert (made / stale_folders.OWNER_FILE).read_text() == str(os.getpid())
+
+
+def test_an_fmu_without_a_binary_for_this_platform_is_refused_at_load(tmp_path):
+    """Our HydraulicCylinder repacked as if built for Windows only: refused when the scenario
+    loads, naming what it carries (it used to stop the run after its log was written)."""
+    import zipfile
+
+    import fmus
+
+    built = fmus.build("HydraulicCylinder")
+    windows = tmp_path / "Windows.fmu"
+    with zipfile.ZipFile(built) as source, zipfile.ZipFile(windows, "w") as out:
+        for name in source.namelist():
+            renamed = name.replace("binaries/linux64/", "binaries/win64/").replace(".so", ".dll")
+            out.writestr(renamed, source.read(name))
+    with pytest.raises(ScenarioError) as error:
+        load_scenario(PAPER, [f'plant.bucket.fmu="{windows}"'])
+    assert error.value.field == "plant.bucket.fmu"
+    assert error.value.reason == ("Windows.fmu has no binary for this platform "
+                                  "(binaries/linux64/HydraulicCylinder.so); it carries win64")
+
+
+def test_an_fmu_folder_that_cannot_be_made_is_the_users_mistake(tmp_path):
+    """$EXCOSIM_FMU_DIR naming a file: `fmus build` exits 2 as `run` does, one line."""
+    import os
+
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a folder")
+    env = {**os.environ, "EXCOSIM_FMU_DIR": str(blocker)}
+    done = subprocess.run([sys.executable, "-m", "orchestrator.cli.app", "fmus", "build",
+                           "IdealActuator"], capture_output=True, text=True, timeout=120, env=env)
+    assert done.returncode == 2 and done.stderr.startswith("excosim: cannot create the FMU "
+                                                           "folder")
+    assert len(done.stderr.strip().splitlines()) == 1

@@ -89,7 +89,7 @@ def fmus_build(
         for name in wanted:
             print(f"{name}\t{fmus.build(name, fmi_version=3 if fmi3 else 2)}")
     except fmus.BuildError as exc:
-        _fail(str(exc), 1)
+        _fail(str(exc), exc.exit_status)
 
 
 @fmus_app.command("info", cls=Command)

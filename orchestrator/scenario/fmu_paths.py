@@ -67,6 +67,8 @@ def resolve_fmus(plant: dict[str, Any], source: str, base_dir: Path,
             port = _PORT_IN_MESSAGE.search(str(error))
             field = f"{where}.ports.{port.group(1)}" if port else f"{where}.fmu"
             raise ScenarioError(source, field, _without_component(error, component)) from None
+        if table["fmu"] not in fmus.MODELS:
+            _check_binary(Path(table["fmu"]), description, source, f"{where}.fmu")
         variables = {v.name: v for v in description.modelVariables}
         if given is not None:
             table["parameters"] = _kept(table["parameters"], given[component], variables,
@@ -96,6 +98,27 @@ def _check_archive(path: Path, source: str, field: str) -> None:
         raise ScenarioError(source, field, f"cannot read {path}: {error.strerror}") from None
     except fmus.UnsafeArchive as error:
         raise ScenarioError(source, field, f"not a readable FMU: {error}") from None
+
+
+def _check_binary(path: Path, description, source: str, field: str) -> None:
+    """An FMU file from outside carries a binary for this platform (FMI 2.0
+    binaries/<platform>/, FMI 3.0 binaries/<arch-os>/): else it could not run here, and the
+    run would stop after writing its log."""
+    import zipfile
+
+    import fmpy
+
+    folder = fmpy.platform if description.fmiVersion.startswith("2") else fmpy.platform_tuple
+    co = description.coSimulation
+    identifier = co.modelIdentifier if co is not None else description.modelName
+    wanted = f"binaries/{folder}/{identifier}{fmpy.sharedLibraryExtension}"
+    with zipfile.ZipFile(path) as archive:
+        names = archive.namelist()
+    if wanted not in names:
+        built = sorted({n.split("/")[1] for n in names
+                        if n.startswith("binaries/") and n.count("/") >= 2 and n.split("/")[1]})
+        raise ScenarioError(source, field, f"{path.name} has no binary for this platform "
+                            f"({wanted}); it carries {', '.join(built) or 'no binaries'}")
 
 
 def model_description(path: Path):
