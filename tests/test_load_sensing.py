@@ -5,12 +5,12 @@ pump's drop); none of the references comes from the code under test."""
 
 import json
 import math
-import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 from cylinder_start import start_parameters
+from cylinder_variants import own_supply_cylinder
 from scipy.optimize import brentq
 
 import fmus
@@ -220,18 +220,7 @@ def test_three_cylinders_on_one_pump_slow_down_together():
 def test_a_cylinder_with_its_own_supply_parameter_stays_off_the_pump(tmp_path):
     # An FMU whose p_pump is a parameter (its own supply setting), not an input: the master does
     # not take it for the pump's port, and the cylinder runs on the supply it models.
-    folder = tmp_path / "HydraulicCylinder"
-    shutil.copytree(Path(fmus.__file__).parent / "HydraulicCylinder", folder)
-    table = folder / "variables.toml"
-    text = table.read_text()
-    start = text.index('name = "p_pump"')
-    end = text.index("[[variable]]", start)
-    entry = text[start:end].replace('causality = "input"', 'causality = "parameter"').replace(
-        'variability = "continuous"', 'variability = "fixed"')
-    table.write_text(text[:start] + entry + text[end:])
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setenv("EXCOSIM_FMU_DIR", str(tmp_path / "fmu"))
-        path = fmus.build_model(folder)
+    path = own_supply_cylinder(tmp_path)
     spec = FmuSpec(str(path), {"p_pump": 20.0e6})
     with Master({"boom": ("cylinder", spec)}, 0.01, {"boom": {"x0": 0.2}}) as master:
         boom = master["boom"]

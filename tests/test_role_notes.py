@@ -3,14 +3,13 @@ show`, the run log's excosim.roles and `review` (orchestrator.plants.role_notes)
 inertia (an FMU without mass_load) and the shared pump (an FMU without p_pump / p_LS)."""
 
 import json
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from cylinder_variants import own_supply_cylinder
 
-import fmus
 from orchestrator.campaign import run_campaign
 from orchestrator.plants.role_notes import cylinder_notes, reflected_range_kg
 from orchestrator.runlog import read_run
@@ -25,20 +24,7 @@ IDEAL = ROOT / "scenarios" / "paper-2020-ideal-actuators.toml"
 
 @pytest.fixture(scope="module")
 def own_supply(tmp_path_factory):
-    """HydraulicCylinder whose p_pump is a parameter (its own supply), not an input."""
-    root = tmp_path_factory.mktemp("own")
-    folder = root / "HydraulicCylinder"
-    shutil.copytree(Path(fmus.__file__).parent / "HydraulicCylinder", folder)
-    table = folder / "variables.toml"
-    text = table.read_text()
-    start = text.index('name = "p_pump"')
-    end = text.index("[[variable]]", start)
-    entry = text[start:end].replace('causality = "input"', 'causality = "parameter"').replace(
-        'variability = "continuous"', 'variability = "fixed"')
-    table.write_text(text[:start] + entry + text[end:])
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setenv("EXCOSIM_FMU_DIR", str(root / "fmu"))
-        return fmus.build_model(folder)
+    return own_supply_cylinder(tmp_path_factory.mktemp("own"))
 
 
 def test_ours_are_fed_and_on_the_pump():
