@@ -61,6 +61,9 @@ DERIVABLE_OUTPUTS: Mapping[str, Mapping[str, tuple[tuple[str, str, float], ...]]
 DERIVATION_PARAMETERS: Mapping[str, tuple[str, ...]] = MappingProxyType({
     "cylinder": ("A_A", "A_B"), "pile": (),
 })
+# The plant's roles and the kind of FMU each takes.
+ROLE_OF: Mapping[str, str] = MappingProxyType({"boom": "cylinder", "stick": "cylinder",
+                                               "bucket": "cylinder", "pile": "pile"})
 ROLES: Mapping[str, tuple[str, ...]] = MappingProxyType({
     "cylinder": CYLINDER_INPUTS + CYLINDER_OUTPUTS,
     "pile": PILE_INPUTS + PILE_OUTPUTS,

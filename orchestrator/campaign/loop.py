@@ -112,7 +112,7 @@ def open_run_log(scenario: Scenario, log_path: str | Path, overwrite: bool = Fal
     from orchestrator.plants.master import derivation_notes, fmu_path
     from orchestrator.plants.role_notes import cylinder_notes
     from orchestrator.runlog.writer import RunLog
-    from orchestrator.scenario.fmu_paths import ROLE_OF
+    from plant_models.model_spec import ROLE_OF
 
     specs = scenario.fmu_specs()
     fmus = {role: fmu_path(spec, role) for role, spec in specs.items()}

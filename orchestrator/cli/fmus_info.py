@@ -22,6 +22,7 @@ from plant_models.model_spec import (
     DERIVABLE_OUTPUTS,
     OPTIONAL_PORTS,
     PILE_INPUTS,
+    ROLE_OF,
     ROLES,
     FmuSpec,
 )
@@ -194,7 +195,7 @@ def inspect_fmu(path: Path) -> FmuInfo:
                    roles)
 
 
-PLANT_ROLES = {"boom": "cylinder", "stick": "cylinder", "bucket": "cylinder", "pile": "pile"}
+PLANT_ROLES = ROLE_OF  # plant role -> the role kind its FMU fills
 
 
 def validate(path: Path, role: str | None = None, ports: dict | None = None,

@@ -34,7 +34,7 @@ def plant_roles(scenario: Scenario) -> dict[str, dict[str, Any]]:
     from orchestrator.campaign.loop import arm_coupling_of
     from orchestrator.plants.master import derivation_notes, fmu_path
     from orchestrator.plants.role_notes import cylinder_notes
-    from orchestrator.scenario.fmu_paths import ROLE_OF
+    from plant_models.model_spec import ROLE_OF
 
     out = {}
     coupling = arm_coupling_of(scenario)

@@ -20,11 +20,10 @@ from fmus.descriptions import model_description as fmus_description
 from fmus.runs import value_kind
 from orchestrator.plants.master import check_component, fmu_path
 from orchestrator.scenario.errors import ScenarioError
-from plant_models.model_spec import FmuSpec
+from plant_models.model_spec import ROLE_OF, FmuSpec
 from plant_models.port_units import si_to_declared
 
 # The role each FMU of the plant plays (plant_models.model_spec.ROLES).
-ROLE_OF = {"boom": "cylinder", "stick": "cylinder", "bucket": "cylinder", "pile": "pile"}
 _PORT_IN_MESSAGE = re.compile(r"role '([^']+)'")
 
 

@@ -41,7 +41,6 @@ PEER_NOTE = ("excosim plant: the FMUs of the cylinder roles (boom, stick, bucket
              "peer master drives these connectors itself.")
 _TYPES = {"Real": "Real", "Float64": "Real", "Float32": "Real", "Integer": "Integer",
           "Int32": "Integer", "Int64": "Integer", "Boolean": "Boolean"}
-ROLE_OF = {"boom": "cylinder", "stick": "cylinder", "bucket": "cylinder", "pile": "pile"}
 _ZIP_TIME = (1980, 1, 1, 0, 0, 0)  # fixed: the archive's bytes depend on its content only
 
 
@@ -52,7 +51,7 @@ def export_ssp(scenario: Any, path: str | Path) -> Path:
     from fmpy import read_model_description
 
     from orchestrator.plants.master import fmu_path
-    from plant_models.model_spec import ROLES
+    from plant_models.model_spec import ROLE_OF, ROLES
 
     if scenario.plant.kind != "sim":
         raise ValueError(f"plant.kind {scenario.plant.kind!r}: only a simulated plant (\"sim\") "

@@ -28,10 +28,12 @@ from typing import Any
 
 from lxml import etree
 
+from plant_models.model_spec import ROLE_OF
+
 SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
 SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
 SSV = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
-ROLES = ("boom", "stick", "bucket", "pile")
+ROLES = tuple(ROLE_OF)
 _VALUE_TYPES = {"Real": float, "Integer": int, "Boolean": lambda text: text == "true"}
 
 
