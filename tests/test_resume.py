@@ -73,7 +73,7 @@ def full(folder) -> Path:
 
 def messages(path: Path) -> list[tuple[str, int, int, bytes]]:
     """(topic, sequence, log time, data) of every message, through the file's indexes; the
-    /period records without their planner wall time."""
+    /period and /period/start records without their planner wall time."""
     status = path.stat()
     return _messages(str(path), status.st_mtime_ns, status.st_size)
 
@@ -84,7 +84,7 @@ def _messages(path: str, *identity) -> list[tuple[str, int, int, bytes]]:
     with open(path, "rb") as stream:
         for _, channel, message in make_reader(stream).iter_messages(log_time_order=False):
             data = message.data
-            if channel.topic == "/period":
+            if channel.topic in ("/period", "/period/start"):
                 record = json.loads(data)
                 del record["planner_ms"]
                 data = json.dumps(record, sort_keys=True).encode()

@@ -392,6 +392,7 @@ def test_without_geometry_or_profile_only_the_samples_display_and_records_are_lo
         log.log_period(record(1), bare, 0.0)
     run = read_run(path, tolerant=False)
     assert run.message_counts == {"/joints": SAMPLES, "/pile/bucket": SAMPLES, "/period": 1,
+                                  "/period/start": 1,
                                   "/display": SAMPLES // 4}  # at the /tf rate, 25 Hz
     assert run.termination == "periods" and "excosim.geometry" not in run.metadata
     assert run.attachments == {"scenario.json": b'{"name": "lab"}'}  # not TOML: named .json

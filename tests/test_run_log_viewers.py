@@ -27,6 +27,7 @@ from mcap_protobuf.decoder import DecoderFactory
 
 from orchestrator.campaign import run_campaign
 from orchestrator.runlog import read_run
+from orchestrator.runlog.plan_scene import PERIOD_START_SCHEMA
 from orchestrator.runlog.schemas import PERIOD_SUMMARY_SCHEMA
 from orchestrator.scenario import load_scenario
 
@@ -80,6 +81,7 @@ def test_the_schema_walker_rejects_what_the_viewers_reject():
 
 def test_every_period_field_has_a_schema_the_viewers_read():
     assert viewer_schema_errors(PERIOD_SUMMARY_SCHEMA) == []
+    assert viewer_schema_errors(PERIOD_START_SCHEMA) == []
 
 
 @pytest.fixture(scope="module")

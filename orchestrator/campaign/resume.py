@@ -183,7 +183,7 @@ def _read(path: Path) -> tuple[RunFile, bytes, Any]:
     except OSError as error:
         raise ResumeRefused(f"cannot read {path}: {error.strerror or error}") from None
     try:
-        return parse_run(path, data), data, lock
+        return parse_run(path, data, topics=("/pile/profile",)), data, lock
     except RunLogError as error:
         if lock is not None:
             lock.close()
@@ -211,6 +211,15 @@ def _check_fmus(path: Path, run: RunFile, scenario: Scenario) -> None:
                 f"{path}: the {role} FMU that would run now ({spec.fmu}, content "
                 f"{now[:12]}) is not the one the run used (content {recorded[:12]}); a run "
                 "resumed with other FMUs is not the same run")
+
+
+def _profiles(run: RunFile, k: int) -> list[tuple[Any, Any]]:
+    """The pile surfaces the log holds up to period k's end, oldest first: (grid, profile)."""
+    samples = run.channels.get("/pile/profile")
+    if samples is None:
+        return []
+    keep = samples.period <= k
+    return list(zip(samples.fields["y_m"][keep], samples.fields["z_m"][keep], strict=True))
 
 
 def resume_campaign(source: ResumeSource, output: str | Path | None = None, *,
@@ -279,6 +288,7 @@ def _continue(source: ResumeSource, output: str | Path | None, overwrite: bool,
     except BaseException:
         plant.close()
         raise
+    log.remember_profiles(_profiles(run, k))
     start = Start(k=k, records=tuple(source.records), t0_s=record["t0_next_s"],
                   state=record["adaptation"], weighed_mass_kg=record["weighed_mass_kg"],
                   strategy=record["strategy"])

@@ -326,8 +326,12 @@ class ChunkBuilder:
             entries = np.empty((len(t), 2), dtype="<u8")
             entries[:, 0], entries[:, 1] = t, offsets
             head = _RECORD_PREFIX.pack(Opcode.MESSAGE_INDEX, 6 + entries.nbytes)
-            indexes[channel_id] = (head + struct.pack("<HI", channel_id, entries.nbytes)
-                                   + entries.tobytes())
+            indexes[channel_id] = (int(offsets[0]), head + struct.pack(
+                "<HI", channel_id, entries.nbytes) + entries.tobytes())
+        # One order for every writer, whatever order messages were added in: the order the
+        # channels first appear in the records (orchestrator.runlog.resume rebuilds it so).
+        indexes = {channel_id: record for channel_id, (_, record)
+                   in sorted(indexes.items(), key=lambda item: item[1][0])}
         self._placed = (records, placed, indexes)
         return self._placed
 

@@ -277,11 +277,25 @@ def _entity(time_ns: int, entity_id: str, primitive: bytes) -> bytes:
             + lifetime_forever + primitive)
 
 
-def pile_scene(time_ns: int, grid_m, profile_m, tip_world_m, geometry: ExcavatorGeometry | None
-               ) -> bytes:
+EARLIER_PROFILES = 4  # the trench profiles of the last periods, drawn fading
+
+
+def pile_scene(time_ns: int, grid_m, profile_m, tip_world_m, geometry: ExcavatorGeometry | None,
+               earlier=()) -> bytes:
     """foxglove.SceneUpdate with the pile surface (the profile z(y) extruded across a display
-    width) and the bucket-tip path of the period (tip_world_m (n, 3) m in `world`, or None)."""
+    width), the bucket-tip path of the period (tip_world_m (n, 3) m in `world`, or None) and
+    the surface profiles before it (`earlier`: [(grid (n,) m, profile (n,) m)], newest first,
+    at most EARLIER_PROFILES), as lines in the arm's plane that fade with age."""
     entities = b""
+    for age, (grid, profile) in enumerate(list(earlier)[:EARLIER_PROFILES]):
+        y, z = np.asarray(grid, dtype=float), np.asarray(profile, dtype=float)
+        if len(y) < 2:
+            continue
+        alpha = 0.7 * (1.0 - age / EARLIER_PROFILES)
+        line = (b"\x08\x00" + field(2, _IDENTITY_POSE) + b"\x19" + np.float64(2.0).tobytes()
+                + b"\x20\x01" + _points(5, np.column_stack([-y, np.zeros_like(y), z]))
+                + field(6, _color((*_PILE_COLOR[:3], alpha))))
+        entities += field(2, _entity(time_ns, f"pile/earlier/{age + 1}", field(11, line)))
     if grid_m is not None and profile_m is not None and len(grid_m) >= 2:
         y, z = np.asarray(grid_m, dtype=float), np.asarray(profile_m, dtype=float)
         half = 0.5 * _PILE_WIDTH * _reach(geometry)

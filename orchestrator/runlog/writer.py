@@ -16,6 +16,8 @@ Channels (schemas in `orchestrator.runlog.schemas`, frames in `orchestrator.runl
 =================== ========================= =================================================
 topic               schema (encoding)         one message per
 =================== ========================= =================================================
+/period/start       excosim.PeriodStart       period, at its start: the record's planned part
+                    (JSON)                    (orchestrator.runlog.plan_scene)
 /period             excosim.PeriodSummary     period, at its end: the campaign's record
                     (JSON)
 /resume             excosim.ResumeState       period, at its end, after /period: what a
@@ -28,7 +30,11 @@ topic               schema (encoding)         one message per
 /pile/profile       excosim.PileProfile       period, at its end: pile surface z(y), m
 /tf                 foxglove.FrameTransforms  sample, decimated to `transform_rate_hz`
 /scene/arm          foxglove.SceneUpdate      period, at its start: a box per arm link
-/scene/pile         foxglove.SceneUpdate      period, at its end: pile surface, tip path
+/scene/pile         foxglove.SceneUpdate      period, at its end: pile surface, tip path,
+                                              the last profiles fading
+/scene/plan         foxglove.SceneUpdate      period, at its start and end: planned tip path,
+                                              via-points, D; the lowest tip point at the end
+/scene/tip_trail    foxglove.SceneUpdate      4 Hz: the measured tip path of the period so far
 =================== ========================= =================================================
 
 Metadata records: `excosim.run` (format, scenario name, plant kind, target mass, time base,
@@ -47,7 +53,6 @@ format), reader (reading it back).
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -57,6 +62,7 @@ import numpy as np
 from foxglove.messages import FrameTransforms, SceneUpdate
 
 from orchestrator.runlog import scene
+from orchestrator.runlog.channels import ChannelTable
 from orchestrator.runlog.chunk import ChunkBuilder, DoubleBatch
 from orchestrator.runlog.lock import being_written, lock_for_writing
 from orchestrator.runlog.mcap_records import McapChunkWriter
@@ -67,6 +73,12 @@ from orchestrator.runlog.metadata import (
     read_fmus,
     to_json,
     write_run_description,
+)
+from orchestrator.runlog.plan_scene import (
+    PERIOD_START_SCHEMA,
+    period_start,
+    plan_scene,
+    trail_messages,
 )
 from orchestrator.runlog.samples import (
     checked,
@@ -79,8 +91,6 @@ from orchestrator.runlog.schemas import (
     PERIOD_SUMMARY_SCHEMA,
     PILE_PROFILE,
     RESUME_STATE_SCHEMA,
-    DoubleMessage,
-    file_descriptor_set,
 )
 from plant_models.geometry import ExcavatorGeometry
 from plant_models.plant import PeriodMeasurement
@@ -141,6 +151,7 @@ class RunLog:
         library = f"excosim {package_versions()['excosim']}"
         lock_for_writing(stream)
         self._writer = McapChunkWriter(stream, library=library, background=background)
+        self._table = ChannelTable(self._writer)
         try:
             write_run_description(
                 self._writer, scenario_json=scenario_json, scenario_text=scenario_text,
@@ -162,8 +173,7 @@ class RunLog:
         self._fsync = fsync
         self._periods = 0
         self._closed = False
-        self._schemas: dict[str, int] = {}
-        self._channels: dict[tuple, int] = {}
+        self._earlier: list[tuple[np.ndarray, np.ndarray]] = []  # newest first
 
     @classmethod
     def continued(cls, stream: BinaryIO, prefix: bytes, *, path: str | Path, periods: int,
@@ -182,10 +192,7 @@ class RunLog:
         self._setup(path, geometry, transform_rate_hz, sample_rate_hz, fsync)
         lock_for_writing(stream)
         self._writer = McapChunkWriter.continued(stream, prefix, background=background)
-        for schema in self._writer.schemas:
-            self._schemas[schema.name] = schema.id
-        for channel in self._writer.channels:
-            self._channels[(channel.topic, tuple(sorted(channel.metadata.items())))] = channel.id
+        self._table = ChannelTable(self._writer)
         self._periods = periods
         try:
             if note is not None:
@@ -196,35 +203,6 @@ class RunLog:
             self._writer.abandon()  # the caller closes the stream and removes the copy
             raise
         return self
-
-    # -- channels ---------------------------------------------------------------------------
-
-    def _schema(self, name: str, encoding: str, data: bytes) -> int:
-        if name not in self._schemas:
-            self._schemas[name] = self._writer.add_schema(name, encoding, data)
-        return self._schemas[name]
-
-    def _proto_channel(self, topic: str, message: DoubleMessage, metadata: dict) -> int:
-        key = (topic, tuple(sorted(metadata.items())))
-        if key not in self._channels:
-            schema = self._schema(message.full_name, "protobuf", file_descriptor_set(message))
-            self._channels[key] = self._writer.add_channel(topic, "protobuf", schema, metadata)
-        return self._channels[key]
-
-    def _foxglove_channel(self, topic: str, message_type) -> int:
-        key = (topic, ())
-        if key not in self._channels:
-            schema = message_type.get_schema()
-            schema_id = self._schema(schema.name, schema.encoding, schema.data)
-            self._channels[key] = self._writer.add_channel(topic, "protobuf", schema_id)
-        return self._channels[key]
-
-    def _json_channel(self, topic: str, schema: dict) -> int:
-        key = (topic, ())
-        if key not in self._channels:
-            schema_id = self._schema(schema["title"], "jsonschema", json.dumps(schema).encode())
-            self._channels[key] = self._writer.add_channel(topic, "json", schema_id)
-        return self._channels[key]
 
     # -- periods ----------------------------------------------------------------------------
 
@@ -246,26 +224,46 @@ class RunLog:
         period_data = decimated(checked(measurement), self._sample_rate_hz)
         chunk = ChunkBuilder(self._writer.pool)
         times, tip_path = self._add_samples(chunk, period_data, t0_s)
-        end_ns = int(np.rint(times[-1] * 1e9))
+        start_ns, end_ns = int(round(t0_s * 1e9)), int(np.rint(times[-1] * 1e9))
+        self._one(chunk, self._table.json("/period/start", PERIOD_START_SCHEMA), start_ns,
+                  to_json(period_start(record, period), f"period {period} start").encode())
+        if self._geometry is not None:
+            plan = self._table.foxglove("/scene/plan", SceneUpdate)
+            reference = period_data.reference_rad[
+                np.arange(0, len(times), scene.decimation_stride(times, self._rate_hz))]
+            for time_ns, lowest in ((start_ns, None), (end_ns, record.get("lowest_tip_m"))):
+                self._one(chunk, plan, time_ns, plan_scene(time_ns, period, record, reference,
+                                                           self._geometry, lowest))
         grid, profile = period_data.pile_grid_m, period_data.pile_profile_m
         if profile is not None:
-            channel = self._proto_channel("/pile/profile", PILE_PROFILE, {})
-            chunk.add_message(channel, self._writer.reserve_sequence(channel, 1), end_ns,
-                              profile_message(times[-1], grid, profile))
+            channel = self._table.proto("/pile/profile", PILE_PROFILE, {})
+            self._one(chunk, channel, end_ns, profile_message(times[-1], grid, profile))
         if profile is not None or tip_path is not None:
-            pile = self._foxglove_channel("/scene/pile", SceneUpdate)
-            data = scene.pile_scene(end_ns, grid, profile, tip_path, self._geometry)
-            chunk.add_message(pile, self._writer.reserve_sequence(pile, 1), end_ns, data)
-        channel = self._json_channel("/period", PERIOD_SUMMARY_SCHEMA)
-        chunk.add_message(channel, self._writer.reserve_sequence(channel, 1), end_ns,
-                          record_json)
+            data = scene.pile_scene(end_ns, grid, profile, tip_path, self._geometry,
+                                    self._earlier)
+            self._one(chunk, self._table.foxglove("/scene/pile", SceneUpdate), end_ns, data)
+        self._one(chunk, self._table.json("/period", PERIOD_SUMMARY_SCHEMA), end_ns,
+                  record_json)
         if resume_json is not None:
-            channel = self._json_channel("/resume", RESUME_STATE_SCHEMA)
-            chunk.add_message(channel, self._writer.reserve_sequence(channel, 1), end_ns,
-                              resume_json)
+            self._one(chunk, self._table.json("/resume", RESUME_STATE_SCHEMA), end_ns,
+                      resume_json)
+        if profile is not None:
+            self.remember_profiles([(grid, profile)])
         self._writer.write_chunk(chunk)
         self._writer.flush(self._fsync, wait=self._fsync)
         self._periods = period
+
+    def _one(self, chunk: ChunkBuilder, channel: int, time_ns: int, data: bytes) -> None:
+        chunk.add_message(channel, self._writer.reserve_sequence(channel, 1), time_ns, data)
+
+    def remember_profiles(self, profiles) -> None:
+        """Take pile surfaces [(grid (n,) m, profile (n,) m)], oldest first, as the latest ones
+        logged (the trench profiles /scene/pile draws fading; a resumed log is given those of
+        the periods it keeps)."""
+        for grid, profile in profiles:
+            self._earlier.insert(0, (np.array(grid, dtype=float),
+                                     np.array(profile, dtype=float)))
+        del self._earlier[scene.EARLIER_PROFILES:]
 
     def log_unfinished(self, measurement: PeriodMeasurement, t0_s: float) -> None:
         """Write the samples of a period that did not finish (a plant that stopped mid-period
@@ -289,19 +287,22 @@ class RunLog:
         start_ns = int(round(t0_s * 1e9))
         batches = []
         for sample in sample_channels(period_data, times):
-            channel = self._proto_channel(sample.topic, sample.message, sample.metadata)
+            channel = self._table.proto(sample.topic, sample.message, sample.metadata)
             first = self._writer.reserve_sequence(channel, len(times))
             batches.append(DoubleBatch(channel, first, sample.prefixes, sample.columns))
         chunk.add_batches(batches, log_ns)
         picked = np.arange(0, len(t), scene.decimation_stride(t, self._rate_hz))
         display = display_channel(period_data, times, picked)
-        channel = self._proto_channel(display.topic, display.message, display.metadata)
+        channel = self._table.proto(display.topic, display.message, display.metadata)
         chunk.add_batches([DoubleBatch(channel, self._writer.reserve_sequence(channel, len(picked)),
                                        display.prefixes, display.columns)], log_ns[picked])
         tip_path = None
         if self._geometry is not None:
             self._add_arm(chunk, joints[picked], log_ns[picked], start_ns)
             tip_path = scene.tip_positions(self._geometry, joints[picked])
+            trail = self._table.foxglove("/scene/tip_trail", SceneUpdate)
+            for time_ns, data in trail_messages(self._geometry, t, joints, log_ns):
+                self._one(chunk, trail, time_ns, data)
         return times, tip_path
 
     def log_pile_surface(self, grid_m: np.ndarray, profile_m: np.ndarray, t_s: float = 0.0
@@ -319,22 +320,21 @@ class RunLog:
             raise ValueError(f"t_s must be finite and >= 0, got {t_s!r}")
         time_ns = int(round(t_s * 1e9))
         chunk = ChunkBuilder(self._writer.pool)
-        channel = self._proto_channel("/pile/profile", PILE_PROFILE, {})
-        chunk.add_message(channel, self._writer.reserve_sequence(channel, 1), time_ns,
-                          profile_message(t_s, grid, profile))
-        pile = self._foxglove_channel("/scene/pile", SceneUpdate)
-        chunk.add_message(pile, self._writer.reserve_sequence(pile, 1), time_ns,
-                          scene.pile_scene(time_ns, grid, profile, None, self._geometry))
+        self._one(chunk, self._table.proto("/pile/profile", PILE_PROFILE, {}), time_ns,
+                  profile_message(t_s, grid, profile))
+        self._one(chunk, self._table.foxglove("/scene/pile", SceneUpdate), time_ns,
+                  scene.pile_scene(time_ns, grid, profile, None, self._geometry))
         self._writer.write_chunk(chunk)
         self._writer.flush(self._fsync, wait=self._fsync)
+        self.remember_profiles([(grid, profile)])
 
     def _add_arm(self, chunk: ChunkBuilder, joints: np.ndarray, log_ns: np.ndarray,
                  start_ns: int) -> None:
         """/scene/arm at the period's start, /tf for joints (n, 3) rad at times (n,) ns."""
-        arm = self._foxglove_channel("/scene/arm", SceneUpdate)
+        arm = self._table.foxglove("/scene/arm", SceneUpdate)
         data = scene.arm_scene(self._geometry, start_ns)
         chunk.add_message(arm, self._writer.reserve_sequence(arm, 1), start_ns, data)
-        channel = self._foxglove_channel("/tf", FrameTransforms)
+        channel = self._table.foxglove("/tf", FrameTransforms)
         first = self._writer.reserve_sequence(channel, len(log_ns))
         transforms = scene.link_transforms(self._geometry, joints)
         records = scene.transform_records(transforms, log_ns, channel, first)
