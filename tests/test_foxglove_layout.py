@@ -30,13 +30,16 @@ from mcap_protobuf.decoder import DecoderFactory
 from scipy.spatial.transform import Rotation
 
 from orchestrator.campaign import run_campaign
-from orchestrator.review.summary import WITHIN_KG
-from orchestrator.scenario import load_scenario
+from orchestrator.review.layout import LayoutFacts, layout_text
+from orchestrator.review.layout import layout as make_layout
+from orchestrator.review.summary import WITHIN_KG, band_kg
+from orchestrator.runlog import read_run
+from orchestrator.scenario import load_scenario, scenario_from_dict
 
 ROOT = Path(__file__).resolve().parents[1]
 LAYOUT_PATH = ROOT / "foxglove" / "excavator-layout.json"
 SCENARIO = ROOT / "scenarios" / "paper-2020.toml"
-PANEL_TYPES = {"3D", "Plot", "RawMessages"}
+PANEL_TYPES = {"3D", "Plot", "RawMessages", "StateTransitions"}
 # docs.foxglove.dev/docs/visualization/panels/plot, "Message path functions" (scalar, operand,
 # vector, struct and time-series functions).
 PATH_FUNCTIONS = {
@@ -186,7 +189,7 @@ def message_paths(layout: dict) -> list[str]:
     out = []
     for panel_id, config in layout["configById"].items():
         kind = panel_id.split("!")[0]
-        if kind == "Plot":
+        if kind in ("Plot", "StateTransitions"):
             out += [path["value"] for path in config["paths"]
                     if not is_reference_line(path["value"])]
         elif kind == "RawMessages":
@@ -264,7 +267,7 @@ def test_3d_panel_draws_the_arm_and_pile_in_the_root_frame(layout, run_log):
     shown = {topic for topic, settings in config["topics"].items() if settings["visible"]}
     assert {run_log.schemas[topic] for topic in shown} == {"foxglove.FrameTransforms",
                                                            "foxglove.SceneUpdate"}
-    assert shown == {"/tf", "/scene/arm", "/scene/pile"}
+    assert shown == {"/tf", "/scene/arm", "/scene/pile", "/scene/plan", "/scene/tip_trail"}
 
 
 def camera_pose(camera: dict):
@@ -331,13 +334,100 @@ def test_measured_is_drawn_over_reference(layout):
             < paths.index(f"/display.reference_{joint}_deg")
 
 
-def test_reference_lines_are_the_review_band_and_the_paper_target(layout):
-    def lines(panel_id):
-        return sorted(float(path["value"]) for path in layout["configById"][panel_id]["paths"]
-                      if is_reference_line(path["value"]))
+def reference_lines(layout: dict, panel_id: str) -> list[float]:
+    return sorted(float(path["value"]) for path in layout["configById"][panel_id]["paths"]
+                  if is_reference_line(path["value"]))
 
-    assert lines("Plot!error") == [-WITHIN_KG, WITHIN_KG]
-    assert lines("Plot!mass") == [load_scenario(SCENARIO).target_mass_kg]
-    others = [lines(panel_id) for panel_id in plots(layout)
+
+def test_reference_lines_are_the_review_band_and_the_paper_target(layout):
+    assert reference_lines(layout, "Plot!error") == [-WITHIN_KG, WITHIN_KG]
+    assert reference_lines(layout, "Plot!mass") == [load_scenario(SCENARIO).target_mass_kg]
+    others = [reference_lines(layout, panel_id) for panel_id in plots(layout)
               if panel_id not in ("Plot!error", "Plot!mass")]
     assert others and all(found == [] for found in others)
+
+
+def test_legends_sit_above_the_plots_not_over_the_data(layout):
+    assert {config["legendDisplay"] for config in plots(layout).values()} == {"top"}
+
+
+def test_the_shipped_layout_is_the_paper_scenarios_generated_one(layout):
+    facts = LayoutFacts.of_scenario(load_scenario(SCENARIO))
+    assert LAYOUT_PATH.read_text(encoding="utf-8") == layout_text(facts)
+
+
+# -- a layout per run: generated from a fresh log of each kind of machine ----------------------
+
+@pytest.fixture(scope="module")
+def full_scale_log(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("foxglove-20t") / "run.mcap"
+    scenario = load_scenario(ROOT / "scenarios" / "excavator-20t.toml", ["periods=1"])
+    result = run_campaign(scenario, log_path=path)
+    assert result.termination == "periods", result
+    return path
+
+
+@pytest.fixture(scope="module")
+def paper_log(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("foxglove-paper") / "run.mcap"
+    result = run_campaign(load_scenario(SCENARIO, ["periods=1"]), log_path=path)
+    assert result.termination == "periods", result
+    return path
+
+
+MACHINES = {"paper": "paper_log", "20 t": "full_scale_log", "lab (emulated, over CAN)":
+            "lab_hil_run"}
+
+
+@pytest.fixture(params=list(MACHINES), scope="module")
+def machine_log(request) -> Path:
+    found = request.getfixturevalue(MACHINES[request.param])
+    path = found[1] if isinstance(found, tuple) else found
+    return Path(path)
+
+
+def test_each_machines_layout_fits_its_own_log(machine_log):
+    run = read_run(machine_log, topics=("/display",))
+    facts = LayoutFacts.of_run(run)
+    generated = make_layout(facts)
+    assert unresolved(generated, run_log_facts(machine_log)) == []
+    # Every /display series is a field the log holds: none would draw as a line of zeros.
+    logged = run.channels["/display"].fields
+    for value in message_paths(generated):
+        topic, fields, _ = parse_path(value)
+        if topic == "/display":
+            assert not np.isnan(logged[fields[0][0]]).any(), value
+    # The band and the target are the run's, from its header.
+    target = float(run.metadata["excosim.run"]["target_mass_kg"])
+    band = band_kg(target)
+    assert reference_lines(generated, "Plot!error") == [-band, band]
+    assert reference_lines(generated, "Plot!mass") == [target]
+    # The layout of a scenario before its run is the layout of its log after it.
+    scenario = scenario_from_dict(run.scenario)
+    assert LayoutFacts.of_scenario(scenario) == facts
+
+
+def test_each_machines_camera_sees_its_arm_and_workspace(machine_log):
+    generated = make_layout(LayoutFacts.of_run(read_run(machine_log, topics=("/display",))))
+    camera = generated["configById"]["3D!arm"]["cameraState"]
+    facts = run_log_facts(machine_log)
+    run = read_run(machine_log)
+    geometry = json.loads(run.metadata["excosim.geometry"]["json"])
+    reach = geometry["boom_length_m"] + geometry["stick_length_m"] + geometry["bucket_length_m"]
+    # The arm's workspace, not the whole pile: surface points beyond the reach need not show.
+    workspace = facts.points_world_m[facts.points_world_m[:, 0]
+                                     <= -geometry["boom_foot_m"][0] + reach]
+    position, forward = camera_pose(camera)
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    relative = workspace - position
+    depth = relative @ forward
+    assert np.all((depth > camera["near"]) & (depth < camera["far"]))
+    tan_half = math.tan(math.radians(camera["fovy"]) / 2)
+    assert np.max(np.abs(relative @ right) / depth) <= tan_half
+    assert np.max(np.abs(relative @ up) / depth) <= tan_half
+    # ... and the arm fills a good part of the view, not a speck: its frames span more than
+    # a third of the view's width.
+    across = relative @ right / depth
+    assert across.max() - across.min() > 2 * tan_half / 3

@@ -27,6 +27,7 @@ import os
 import struct
 import zlib
 from collections import defaultdict
+from collections.abc import Callable
 from typing import BinaryIO
 
 import zstandard
@@ -102,6 +103,9 @@ class McapChunkWriter:
         self._message_counts: dict[int, int] = defaultdict(int)
         self._start_time: int | None = None
         self._end_time = 0
+        # Called with each chunk's records (bytes) and this writer once they are made, before
+        # they are written (orchestrator.live: the same messages served as they are logged).
+        self.tap: Callable[[bytes, McapChunkWriter], None] | None = None
 
     def _index_records(self, data: memoryview) -> None:
         """What the writer knows after writing `data` (a data section; see `continued`)."""
@@ -268,6 +272,8 @@ class McapChunkWriter:
 
     def _write_chunk(self, chunk: ChunkBuilder, indexes: dict[int, bytes]) -> None:
         records = chunk.records()
+        if self.tap is not None:
+            self.tap(bytes(records), self)
         compressed = self._compressor.compress(records)
         compression = b"zstd"
         head = _RECORD_PREFIX.pack(Opcode.CHUNK, 8 * 3 + 4 + 4 + len(compression) + 8

@@ -345,6 +345,10 @@ class RunLog:
         for index, width, rows in records:
             chunk.add_rows(channel, log_ns[index], width, rows)
 
+    def attach_live(self, view) -> None:
+        """Hand every chunk from now on to `view` (orchestrator.live.LiveView) as it is made."""
+        self._writer.tap = view.take_chunk
+
     def wait_written(self) -> None:
         """Block until everything logged so far is in the file (flushed to the operating
         system); raise what failed writing it, if anything. Returns at once without
