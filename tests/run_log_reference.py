@@ -25,6 +25,7 @@ from orchestrator.runlog.schemas import (
     SIGNAL_SAMPLE,
     cylinder_signals,
 )
+from orchestrator.runlog.units import signal_unit
 from orchestrator.runlog.wire import doubles, field, rows, varint, varint_digits
 from plant_models.plant import JOINTS
 
@@ -296,7 +297,8 @@ def sample_channels(period: CheckedPeriod, times_s: np.ndarray) -> list[SampleCh
     for component, names in components.items():
         packed = _packed_tag(SIGNAL_SAMPLE.number("values"), len(names))
         out.append(SampleChannel(
-            f"/signals/{component}", SIGNAL_SAMPLE, {"names": json.dumps(names)},
+            f"/signals/{component}", SIGNAL_SAMPLE,
+            {"names": json.dumps(names), "units": json.dumps([signal_unit(n) for n in names])},
             (double_tag(1), packed) + (b"",) * (len(names) - 1),
             np.column_stack([times_s] + [signals[n] for n in names]),
         ))

@@ -14,6 +14,7 @@ from typing import Annotated
 
 import typer
 
+from orchestrator.cli import export_command, plot
 from orchestrator.cli.conventions import (
     HELP_OPTIONS,
     PROG,
@@ -220,12 +221,11 @@ def review(
         bool, typer.Option("--json", help="Print one JSON object (scenario, plant, "
                            "target_mass_kg, termination, periods, ...).")
     ] = False,
-    plots: Annotated[
-        Path | None, typer.Option("--plots", metavar="DIR", help="Write PNG figures into DIR.")
-    ] = None,
+    plots: Annotated[Path | None, typer.Option("--plots", metavar="DIR",
+                                               help="Write PNG figures into DIR.")] = None,
     period: Annotated[
-        int | None, typer.Option("--period", metavar="K", help="Period of the per-period "
-                                 "figures (with --plots; default 1).")
+        str | None, typer.Option("--period", metavar="K|all", help="Period of the per-period "
+                                 "figures, or all (with --plots; default 1).")
     ] = None,
     csv: Annotated[
         Path | None, typer.Option("--csv", metavar="FILE.csv", help="Write the period table "
@@ -245,9 +245,7 @@ def review(
     """Summarise a run from its log alone: scenario, how it ended, one row per period."""
     from orchestrator.cli.review import CsvRequest, review_run
 
-    if csv_dir is not None and not csv_channels:
-        _fail("--csv-dir: give the channels to write with --csv-channels TOPIC[,TOPIC]", 2)
-    request = CsvRequest(csv, csv_channels or [], csv_dir or Path("."))
+    request = CsvRequest(csv, csv_channels or [], csv_dir)
     failure = review_run(run_log, as_json, plots, period, request)
     if failure is not None:
         _fail(*failure)
@@ -272,6 +270,8 @@ def compare(
 
 
 app.command("sweep", cls=Command)(sweep_command)
+app.command("plot", cls=Command)(plot.plot)
+app.command("export", cls=Command)(export_command.export)
 scenario_app.command("export-ssp", cls=Command)(export_ssp_command)
 
 

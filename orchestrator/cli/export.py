@@ -1,11 +1,14 @@
-"""CSV export of a run log for spreadsheets and other tools (`excosim review --csv`,
-`--csv-channels`): the per-period table and chosen numeric channels.
+"""Tables of a run log for spreadsheets and other tools: the one implementation behind `excosim
+review --csv` / `--csv-channels`, `excosim export` (CSV and Parquet) and `excosim plot`.
 
 The period table has the columns of `orchestrator.campaign.record.records_dataframe` (index k).
-A channel's CSV has `t_s` (campaign time, s), `period` (1-based), then one column per field,
-named with its unit as in the log's schema (`measured_boom_rad`, `p_A_Pa`); repeated fields get
-one column per element (`z_m[0]`, ...; a /signals channel's element names from its metadata).
-Floats are written with all their digits, so a read-back equals the log.
+A channel's table has `t_s` (campaign time, s), `period` (1-based), then one column per field,
+named with its unit as in the log's schema (`measured_boom_rad`, `p_A_Pa`; the spool command
+`u` as `u_1`); repeated fields get one column per element (`z_m[0]`, ...); a /signals channel's
+elements are named by its metadata "names" with their units appended (`boom.E_supply_J`,
+`supply.p_pump_Pa`: the metadata "units", or for logs written before it the units its names
+imply, orchestrator.runlog.units; a name of unknown unit stays bare). Floats keep all their
+digits, so a read-back equals the log.
 """
 
 from __future__ import annotations
@@ -14,16 +17,22 @@ import json
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from orchestrator.runlog import RunFile, RunLogError
+from orchestrator.runlog.reader import ChannelSamples
+from orchestrator.runlog.units import signal_units, with_unit
 
 # Fields whose schema name carries no unit: named here with it (SI writes a dimensionless
 # quantity's unit as 1; `u` is the spool command, -1..1).
 _UNIT_NAMES = {"u": "u_1"}
-_NOT_NUMERIC = ("/period",)  # JSON records: in the period CSV instead
+PERIOD_TOPIC = "/period"  # JSON records: the period table instead of a channel table
+_NOT_NUMERIC = (PERIOD_TOPIC,)
+FORMATS = ("csv", "parquet")  # what `write_tables` writes: file suffixes
 
 
 class ExportError(ValueError):
-    """A --csv request that does not fit the file; the message is one line."""
+    """A request that does not fit the file; the message is one line."""
 
 
 def topics(items: list[str]) -> list[str]:
@@ -60,11 +69,42 @@ def read_channels(path: Path, wanted: list[str]) -> RunFile:
                           "as CSV)") from None
 
 
+def numeric_channels(run: RunFile) -> list[str]:
+    """The numeric channels of `run` that hold samples (RunFile.numeric_topics with messages)."""
+    return [topic for topic in run.numeric_topics if run.message_counts.get(topic)]
+
+
 def period_frame(run: RunFile) -> Any:
     """pandas DataFrame of the /period records (records_dataframe: index k)."""
     from orchestrator.campaign.record import records_dataframe
 
     return records_dataframe(run.periods)
+
+
+def channel_columns(channel: ChannelSamples) -> list[tuple[str, str, np.ndarray]]:
+    """(column name, what it comes from, values (n,)) of every column of a decoded channel's
+    table after t_s and period (module doc). "What it comes from" is the logged field ("u",
+    "z_m") or a /signals element's name ("boom.E_supply"): a repeated field's columns share it."""
+    try:
+        names = json.loads(channel.metadata.get("names", "null"))
+    except ValueError:  # a damaged or foreign log: its elements get indices instead
+        names = None
+    if not (isinstance(names, list) and all(isinstance(name, str) for name in names)):
+        names = None
+    out = []
+    for field, values in channel.fields.items():
+        if field == "t_s":
+            continue
+        if values.ndim == 1:
+            out.append((_UNIT_NAMES.get(field, field), field, values))
+            continue
+        if names and len(names) == values.shape[1]:
+            units = signal_units(channel.metadata, names)
+            out += [(with_unit(name, unit), name, column)
+                    for name, unit, column in zip(names, units, values.T, strict=True)]
+        else:
+            out += [(f"{field}[{i}]", field, column) for i, column in enumerate(values.T)]
+    return out
 
 
 def channel_frame(run: RunFile, topic: str) -> Any:
@@ -74,23 +114,14 @@ def channel_frame(run: RunFile, topic: str) -> Any:
     channel = run.channels[topic]
     times = channel.fields.get("t_s", channel.log_time_ns / 1e9)
     columns: dict[str, Any] = {"t_s": times, "period": channel.period}
-    names = json.loads(channel.metadata.get("names", "null")) or None
-    for field, values in channel.fields.items():
-        if field == "t_s":
-            continue
-        if values.ndim == 1:
-            columns[_UNIT_NAMES.get(field, field)] = values
-            continue
-        labels = names if names and len(names) == values.shape[1] else [
-            f"{field}[{i}]" for i in range(values.shape[1])]
-        for label, column in zip(labels, values.T, strict=True):
-            columns[label] = column
+    for label, _, values in channel_columns(channel):
+        columns[label] = values
     return pd.DataFrame(columns)
 
 
-def channel_file(topic: str) -> str:
-    """/cylinder/boom -> cylinder_boom.csv"""
-    return topic.strip("/").replace("/", "_") + ".csv"
+def channel_file(topic: str, suffix: str = ".csv") -> str:
+    """/cylinder/boom -> cylinder_boom.csv (or another `suffix`, e.g. ".parquet")."""
+    return topic.strip("/").replace("/", "_") + suffix
 
 
 def write(run: RunFile, csv: Path | None, channels: RunFile | None, wanted: list[str],
@@ -108,4 +139,22 @@ def write(run: RunFile, csv: Path | None, channels: RunFile | None, wanted: list
             target = folder / channel_file(topic)
             channel_frame(channels, topic).to_csv(target, index=False)
             written.append(target)
+    return written
+
+
+def write_tables(run: RunFile, folder: Path, suffix: str) -> list[Path]:
+    """Write every decoded channel of `run` (one file each, `channel_file`) and the period
+    table (period.<suffix>) into `folder` (which must exist) as `suffix` ("csv" or "parquet");
+    the paths written. OSError if a file cannot be written."""
+    frames = [(channel_file(topic, f".{suffix}"), channel_frame(run, topic), False)
+              for topic in run.channels]
+    frames.append((f"period.{suffix}", period_frame(run), True))
+    written = []
+    for name, frame, index in frames:
+        target = folder / name
+        if suffix == "csv":
+            frame.to_csv(target, index=index)
+        else:
+            frame.to_parquet(target, index=index)
+        written.append(target)
     return written

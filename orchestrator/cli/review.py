@@ -24,21 +24,24 @@ from orchestrator.runlog import RunLogError
 @dataclass
 class CsvRequest:
     """What `review` writes as CSV: the period table to `periods` (None: not), the channels
-    `topics` (TOPIC[,TOPIC] items) into `folder`."""
+    `topics` (TOPIC[,TOPIC] items) into `folder` (None: the current folder)."""
 
     periods: Path | None = None
     topics: list[str] = field(default_factory=list)
-    folder: Path = Path(".")
+    folder: Path | None = None
 
 
-def review_run(path: Path, as_json: bool, plots: Path | None, period: int | None,
+def review_run(path: Path, as_json: bool, plots: Path | None, period: int | str | None,
                csv: CsvRequest | None = None) -> tuple[str, int] | None:
     """Print the summary and period table of the run log at `path` (or one JSON object);
-    with `plots`, write the figures there for period `period`; with `csv`, write CSV files.
-    The paths written go to stdout (to stderr with --json, which keeps stdout one object)."""
+    with `plots`, write the figures there for period `period` (a number, "all": every period;
+    None: 1); with `csv`, write CSV files. The paths written go to stdout (to stderr with
+    --json, which keeps stdout one object)."""
     from orchestrator.review.plots import PLOT_TOPICS, write_plots
 
     csv = csv or CsvRequest()
+    if csv.folder is not None and not csv.topics:
+        return "--csv-dir: give the channels to write with --csv-channels TOPIC[,TOPIC]", 2
     wanted = export.topics(csv.topics)
     try:
         run = review.load(path, PLOT_TOPICS if plots is not None else ())
@@ -48,13 +51,11 @@ def review_run(path: Path, as_json: bool, plots: Path | None, period: int | None
         return str(error), 2
     if period is not None and plots is None:
         return f"--period {period}: it picks the period of the --plots figures; add --plots DIR", 2
-    period = 1 if period is None else period
     if csv.periods is not None and not Path(csv.periods).parent.is_dir():
         return f"--csv {csv.periods}: the folder {Path(csv.periods).parent} does not exist", 2
-    if plots is not None and not 1 <= period <= len(run.periods):
-        held = {0: "no complete period", 1: "period 1 only"}.get(
-            len(run.periods), f"periods 1-{len(run.periods)}")
-        return f"--period {period}: {path} holds {held}", 2
+    periods = figure_periods(period, len(run.periods), path) if plots is not None else []
+    if isinstance(periods, str):
+        return periods, 2
     data = review.summary(run)
     if as_json:
         print(json_text(data))
@@ -74,17 +75,33 @@ def review_run(path: Path, as_json: bool, plots: Path | None, period: int | None
                   soft_wrap=True)
     written: list[Path] = []
     try:
-        written += export.write(run, csv.periods, channels, wanted, Path(csv.folder))
+        written += export.write(run, csv.periods, channels, wanted, Path(csv.folder or "."))
     except OSError as error:
         return f"--csv: cannot write: {error.strerror or error}", 2
     if plots is not None:
         try:
-            written += write_plots(run, plots, period)
+            written += write_plots(run, plots, periods)
         except OSError as error:
             return f"--plots {plots}: cannot write the figures: {error.strerror or error}", 2
     if written:
         print("\n".join(str(p) for p in written), file=sys.stderr if as_json else sys.stdout)
     return None
+
+
+def figure_periods(period: int | str | None, n: int, path: Path) -> list[int] | str:
+    """The periods of the per-period figures that `--period` picks (None: 1; "all": every
+    one) in the log at `path` of `n` complete periods, or the one-line mistake."""
+    if period is None or period == "all":
+        wanted = list(range(1, n + 1)) if period == "all" else [1]
+    else:
+        try:
+            wanted = [int(period)]
+        except ValueError:
+            return f"--period {period}: expected a period number K or all"
+    if n and all(1 <= k <= n for k in wanted):
+        return wanted
+    held = {0: "no complete period", 1: "period 1 only"}.get(n, f"periods 1-{n}")
+    return f"--period {period if period is not None else 1}: {path} holds {held}"
 
 
 def role_lines(data: dict[str, Any]) -> list[str]:

@@ -1,14 +1,16 @@
 """PNG figures of a run log, in the spirit of the paper's Figures 7-11, drawn from the file alone.
 
-`write_plots(run, folder, period)` writes every figure the file has data for and returns what it
-wrote; each `plot_*` function draws one figure and returns the matplotlib Figure (a caller may
-save or show it). Angles in degrees, pressures in bar, lengths in m, masses in kg. The figures
-live in one module each (plots_joints, plots_pile, plots_pressures, plots_productivity,
-plots_weight; shared parts in plots_common); this module is the entry point and re-exports them.
+`write_plots(run, folder, period)` writes every figure the file has data for (the per-period
+ones for one period or several) and returns what it wrote; each `plot_*` function draws one
+figure and returns the matplotlib Figure (a caller may save or show it). Angles in degrees,
+pressures in bar, lengths in m, masses in kg. The figures live in one module each (plots_joints,
+plots_pile, plots_pressures, plots_productivity, plots_weight; shared parts in plots_common);
+this module is the entry point and re-exports them.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -49,28 +51,32 @@ def save_figure(fig: Figure, path: Path) -> Path:
     return path
 
 
-def write_plots(run: RunFile, folder: str | Path, period: int = 1) -> list[Path]:
+def write_plots(run: RunFile, folder: str | Path, period: int | Sequence[int] = 1) -> list[Path]:
     """Write every figure the run log has data for into `folder` (created) and return the
-    files: period_<k>_joints.png and period_<k>_cylinder_pressures.png for period `period`,
-    weight_error.png, tip_paths.png, pile_profiles.png and productivity.png (payload, fill
-    factor, t/h, kJ/t per period; logs with the figures). `run` must have been read with
-    topics=PLOT_TOPICS; ValueError if it holds no period or not `period`."""
+    files: period_<k>_joints.png and period_<k>_cylinder_pressures.png for period `period`
+    (or for each of several periods, e.g. range(1, len(run.periods) + 1)), weight_error.png,
+    tip_paths.png, pile_profiles.png and productivity.png (payload, fill factor, t/h, kJ/t per
+    period; logs with the figures). `run` must have been read with topics=PLOT_TOPICS;
+    ValueError if it holds no period or not `period`."""
     n = len(run.periods)
-    if not 1 <= period <= n:
-        held = f"periods 1-{n}" if n else "no complete period"
-        raise ValueError(f"period {period}: the run log holds {held}")
+    periods = [period] if isinstance(period, int) else list(period)
+    for k in periods:
+        if not 1 <= k <= n:
+            held = f"periods 1-{n}" if n else "no complete period"
+            raise ValueError(f"period {k}: the run log holds {held}")
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    tag = f"period_{period:02d}"
-    written = [save_figure(plot_joints(run, period), folder / f"{tag}_joints.png"),
-               save_figure(plot_weight_error(run), folder / "weight_error.png")]
+    written = []
+    for k in periods:
+        written.append(save_figure(plot_joints(run, k), folder / f"period_{k:02d}_joints.png"))
+        if all(f"/cylinder/{joint}" in run.channels for joint in JOINTS):
+            written.append(save_figure(plot_cylinder_pressures(run, k),
+                                       folder / f"period_{k:02d}_cylinder_pressures.png"))
+    written.append(save_figure(plot_weight_error(run), folder / "weight_error.png"))
     if "/pile/bucket" in run.channels:
         written.append(save_figure(plot_tip_paths(run), folder / "tip_paths.png"))
     if "/pile/profile" in run.channels:
         written.append(save_figure(plot_pile_profiles(run), folder / "pile_profiles.png"))
     if has_productivity(run):
         written.append(save_figure(plot_productivity(run), folder / "productivity.png"))
-    if all(f"/cylinder/{joint}" in run.channels for joint in JOINTS):
-        written.append(save_figure(plot_cylinder_pressures(run, period),
-                                   folder / f"{tag}_cylinder_pressures.png"))
     return written

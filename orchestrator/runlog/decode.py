@@ -14,9 +14,11 @@ is parsed field by field.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from google.protobuf import descriptor_pb2
+from google.protobuf.message import DecodeError as ProtobufDecodeError
 
 _DOUBLE = descriptor_pb2.FieldDescriptorProto.TYPE_DOUBLE
 _REPEATED = descriptor_pb2.FieldDescriptorProto.LABEL_REPEATED
@@ -52,6 +54,18 @@ def numeric_schema(name: str, data: bytes) -> NumericSchema:
                     repeated.add(field.number)
             return NumericSchema(name, names, frozenset(repeated))
     raise DecodeError(f"schema data does not define message {name}")
+
+
+def is_numeric(schema: Any) -> bool:
+    """Whether an MCAP schema record (None: none) is a protobuf message of doubles only, which
+    `numeric_schema` and `decode` read."""
+    if schema is None or schema.encoding != "protobuf":
+        return False
+    try:
+        numeric_schema(schema.name, schema.data)
+    except (DecodeError, ProtobufDecodeError):
+        return False
+    return True
 
 
 def _varint(data: bytes, at: int) -> tuple[int, int]:

@@ -26,7 +26,7 @@ from mcap.opcode import Opcode
 from mcap.records import Attachment, Channel, Metadata, Schema
 
 from orchestrator.runlog import records
-from orchestrator.runlog.decode import DecodeError, decode, numeric_schema
+from orchestrator.runlog.decode import DecodeError, decode, is_numeric, numeric_schema
 from orchestrator.runlog.mcap_records import MAGIC
 from orchestrator.runlog.metadata import FORMAT
 
@@ -82,6 +82,8 @@ class RunFile:
     continues from: orchestrator.campaign.resume), for the periods that have one.
     period_chunks: per period, the file offsets [start, end) of the chunk record that holds its
     /period record.
+    numeric_topics: the topics whose schema is a protobuf message of doubles (what `topics=`
+    decodes), in the order of their channel records.
     """
 
     path: Path
@@ -97,6 +99,7 @@ class RunFile:
     truncated: bool = False
     resume_states: dict[int, bytes] = field(default_factory=dict)
     period_chunks: list[tuple[int, int]] = field(default_factory=list)
+    numeric_topics: list[str] = field(default_factory=list)
 
     @property
     def scenario(self) -> dict:
@@ -373,6 +376,8 @@ def parse_run(path: Path, data: bytes, tolerant: bool = True, topics: Collection
         if problem is not None:
             raise RunLogError(f"{path}: {problem}")
     scan.decode_collected()
+    run.numeric_topics = list(dict.fromkeys(channel.topic for channel in scan.channels.values()
+                                            if is_numeric(scan.schemas.get(channel.schema_id))))
     end = run.metadata.get("excosim.end")
     run.finished = end is not None
     if end is not None:

@@ -21,6 +21,7 @@ from orchestrator.runlog.schemas import (
     DoubleMessage,
     cylinder_signals,
 )
+from orchestrator.runlog.units import signal_unit
 from orchestrator.runlog.wire import varint
 from plant_models.plant import JOINTS, PeriodMeasurement
 
@@ -115,7 +116,9 @@ def decimated(period: CheckedPeriod, rate_hz: float | None) -> CheckedPeriod:
 def sample_channels(period: CheckedPeriod, times_s: np.ndarray) -> list[SampleChannel]:
     """The high-rate channels of a period with campaign times times_s (m,) s: /joints always;
     /cylinder/<joint> and /pile/bucket with the fields whose signals were measured; every other
-    signal on /signals/<component> (the part of its name before the first dot)."""
+    signal on /signals/<component> (the part of its name before the first dot), whose metadata
+    "names" orders the values and "units" gives their units (orchestrator.runlog.units; "" where
+    unknown)."""
     signals = period.signals
     out = [SampleChannel("/joints", JOINT_STATE, {}, _JOINT_PREFIXES,
                          (times_s, *period.reference_rad.T, *period.joints_rad.T))]
@@ -149,7 +152,9 @@ def _signal_layout(signal_names: tuple[str, ...]) -> tuple[tuple, ...]:
                                   []).append(name)
     for component, names in components.items():
         packed = _packed_tag(SIGNAL_SAMPLE.number("values"), len(names))
-        out.append((f"/signals/{component}", SIGNAL_SAMPLE, {"names": json.dumps(names)},
+        metadata = {"names": json.dumps(names),
+                    "units": json.dumps([signal_unit(name) for name in names])}
+        out.append((f"/signals/{component}", SIGNAL_SAMPLE, metadata,
                     (double_tag(1), packed) + (b"",) * (len(names) - 1), tuple(names)))
     return tuple(out)
 

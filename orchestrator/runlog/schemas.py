@@ -90,7 +90,8 @@ PILE_BUCKET_STATE = DoubleMessage(
 # Pile surface after a period: cell-centre y (m, machine frame) and surface height z (m).
 PILE_PROFILE = DoubleMessage("PileProfile", ("t_s",), repeated=("y_m", "z_m"))
 
-# Any other signals of one component: `values` in the order the channel metadata "names" gives.
+# Any other signals of one component: `values` in the order the channel metadata "names" gives;
+# "units" their units (JSON list; older logs lack it: orchestrator.runlog.units derives them).
 SIGNAL_SAMPLE = DoubleMessage("SignalSample", ("t_s",), repeated=("values",))
 
 # What a person reads in a viewer, at the /tf rate: angles and tracking error in deg, chamber
