@@ -21,7 +21,7 @@ from typer.main import get_command
 from typer.testing import CliRunner
 
 from orchestrator.campaign import loop as campaign
-from orchestrator.cli import run as run_command
+from orchestrator.cli import results
 from orchestrator.cli.app import app
 from orchestrator.review.summary import ending
 from orchestrator.runlog import read_run
@@ -164,6 +164,8 @@ def _signal_after_period_1(tmp_path: Path, named: bool, signum: int):
                                env={**ENV, "TMPDIR": str(temporary)}, stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True)
     try:
+        line = process.stderr.readline()  # the run says where it logs as it starts
+        assert line.startswith("logging to "), line + process.communicate(timeout=60)[1]
         line = process.stderr.readline()  # blocks until period 1 is done (or the run failed)
         assert line == "test: period 1 done\n", line + process.communicate(timeout=60)[1]
         process.send_signal(signum)
@@ -247,12 +249,12 @@ def test_runs_started_in_the_same_millisecond_get_their_own_logs(tmp_path, doubl
         def now(cls, tz=None):
             return datetime(2026, 1, 2, 3, 4, 5, 678_000, tzinfo=UTC)
 
-    monkeypatch.setattr(run_command, "datetime", Frozen)
+    monkeypatch.setattr(results, "datetime", Frozen)
     monkeypatch.chdir(tmp_path)
     outputs = [CliRunner().invoke(app, ["run", str(PAPER), "--periods", "1", *extra])
                for extra in ([], [], ["--set", "seed=7"])]
     assert all(done.exit_code == 0 for done in outputs), [d.output for d in outputs]
-    same, other = (run_command.default_name(load_scenario(PAPER, items), Frozen.now())
+    same, other = (results.default_name(load_scenario(PAPER, items), Frozen.now())
                    for items in (["periods=1"], ["seed=7", "periods=1"]))
     assert same.startswith("paper-2020-20260102T030405.678Z-") and same != other
     names = [f"{same}.mcap", f"{same}-2.mcap", f"{other}.mcap"]

@@ -143,6 +143,7 @@ def run_campaign(
     overwrite: bool = False,
     step_timeout_s: float | None = None,
     on_step_timeout: Callable[[str], None] | None = None,
+    on_log_opened: Callable[[Any], None] | None = None,
 ) -> CampaignResult:
     """Dig `scenario.periods` periods (fewer if the workspace runs out) and report.
 
@@ -156,6 +157,8 @@ def run_campaign(
         message naming the FMU, the plant's temporary FMU folders are removed, and
         on_step_timeout(message) is called from the watchdog's thread; it must end the process
         (the stuck call never returns: `excosim run` exits with status 1).
+    on_log_opened: called with the RunLog once it is open, before anything is dug (e.g. to
+        say where it is, or RunLog.attach_live).
     A log that cannot be opened (FileExistsError for an existing file, OSError) raises before
     anything is dug, and so does a plant the scenario's FMUs cannot make (PlantRefused, a
     ValueError naming the role: a port that does not fit, a load of the wrong sign, a stroke
@@ -170,6 +173,8 @@ def run_campaign(
         plant = _plant_before_log(scenario, step_timeout_s, on_step_timeout)
     try:
         log = open_run_log(scenario, log_path, overwrite) if log_path is not None else None
+        if log is not None and on_log_opened is not None:
+            on_log_opened(log)
     except BaseException:
         if plant is not None:
             plant.close()

@@ -225,20 +225,23 @@ def _profiles(run: RunFile, k: int) -> list[tuple[Any, Any]]:
 def resume_campaign(source: ResumeSource, output: str | Path | None = None, *,
                     progress: Callable[[dict[str, Any]], None] | None = None,
                     overwrite: bool = False, step_timeout_s: float | None = None,
-                    on_step_timeout: Callable[[str], None] | None = None) -> CampaignResult:
+                    on_step_timeout: Callable[[str], None] | None = None,
+                    on_log_opened: Callable[[Any], None] | None = None) -> CampaignResult:
     """Continue the run of `source` (prepare_resume) after its period k; the result holds
     every period's record, 1.. (orchestrator.campaign.loop.run_campaign's result).
 
     output: where the combined log goes (None or the source's path: in place; another path: a
     new file, an existing one only with `overwrite`). progress, step_timeout_s,
-    on_step_timeout: as run_campaign's. ResumeRefused when the plant refuses the state (an FMU
-    that does not take its serialized state), OSError when the log cannot be made: nothing is
-    written then. After that it fails as run_campaign does (termination "error")."""
+    on_step_timeout, on_log_opened: as run_campaign's. ResumeRefused when the plant refuses
+    the state (an FMU that does not take its serialized state), OSError when the log cannot be
+    made: nothing is written then. After that it fails as run_campaign does (termination "error")."""
     try:
         log, plant, start = _continue(source, output, overwrite, step_timeout_s,
                                       on_step_timeout)
     finally:
         source.release()  # the continued log is in place, or nothing was written
+    if on_log_opened is not None:
+        on_log_opened(log)
     return run_opened(source.scenario, log, plant, start, progress, step_timeout_s,
                       on_step_timeout, log.path)
 

@@ -14,7 +14,7 @@ from typing import Annotated
 
 import typer
 
-from orchestrator.cli import export_command, plot
+from orchestrator.cli import export_command, plot, run_command
 from orchestrator.cli.conventions import (
     HELP_OPTIONS,
     PROG,
@@ -25,6 +25,7 @@ from orchestrator.cli.conventions import (
     fail,
     version,
 )
+from orchestrator.cli.layout import layout_command
 from orchestrator.cli.ssp import export_ssp_command
 from orchestrator.cli.sweep import sweep as sweep_command
 
@@ -44,9 +45,7 @@ scenario_app = typer.Typer(cls=Group, help="Look at scenarios; export their plan
                            no_args_is_help=True, context_settings=HELP_OPTIONS)
 app.add_typer(scenario_app, name="scenario")
 
-RUN_LOG = "RUN.mcap"
-Trust = Annotated[bool, typer.Option("--trust", help="Run FMU files that differ from FMUs built "
-                                     "here from our sources (they are native code).")]
+RUN_LOG, Trust = run_command.RUN_LOG, run_command.Trust
 
 
 def _fail(message: str, code: int) -> None:
@@ -136,81 +135,7 @@ def fmus_demo() -> None:
         _fail(str(exc), 1)
 
 
-@app.command("run", cls=Command)
-def run(
-    scenario: Annotated[Path | None, typer.Argument(
-        metavar="SCENARIO.toml", help="Scenario file, e.g. scenarios/paper-2020.toml.")] = None,
-    output: Annotated[
-        Path | None,
-        typer.Option("-o", "--output", metavar=RUN_LOG, help="Log to write (default: a new "
-                     "runs/<scenario>-<UTC time>-<scenario hash>.mcap)."),
-    ] = None,
-    resume: Annotated[
-        Path | None, typer.Option("--resume", metavar=RUN_LOG, help="Continue the killed or "
-                                  "interrupted run of this log after its last complete period "
-                                  "(its own scenario; the log is replaced unless -o).")
-    ] = None,
-    periods: Annotated[
-        int | None, typer.Option("--periods", metavar="N", help="Dig N periods (at least 1).")
-    ] = None,
-    overrides: Annotated[
-        list[str] | None,
-        typer.Option("--set", metavar="KEY=VALUE", help="Override a scenario value, e.g. --set "
-                     "periods=5 or --set plant.pile.parameters.density=1800 (repeatable)."),
-    ] = None,
-    as_json: Annotated[
-        bool, typer.Option("--json", help="Print one JSON object (scenario, termination, "
-                           "path, periods, figures, ...) instead of the table.")
-    ] = False,
-    quiet: Annotated[
-        bool, typer.Option("--quiet", "-q", help="Print nothing but errors.")
-    ] = False,
-    force: Annotated[
-        bool, typer.Option("--force", "-f", help="Overwrite the -o file if it exists.")
-    ] = False,
-    plant: Annotated[
-        str | None, typer.Option("--plant", metavar="sim|lab", help="Dig with the simulated "
-                                 "excavator or the lab excavator over CAN (table plant.lab).")
-    ] = None,
-    emulate: Annotated[
-        bool, typer.Option("--emulate", help="Lab plant: run the emulated excavator in this "
-                           "process on python-can's virtual bus (hardware-in-the-loop).")
-    ] = False,
-    trust: Trust = False,
-    step_timeout: Annotated[
-        float, typer.Option("--step-timeout", metavar="S", help="End the run when one FMU step "
-                            "does not return within S seconds (0: never).")
-    ] = 30.0,
-    in_process: Annotated[
-        bool, typer.Option("--in-process", help="Dig in this process, not in a supervised "
-                           "child (for a debugger or a profiler; a crashing FMU then ends the "
-                           "run without an end record in its log).")
-    ] = False,
-) -> None:
-    """Run a digging campaign (or go on with a stopped one: --resume): plan, dig and weigh
-    period after period; log it to MCAP."""
-    from orchestrator.cli import run as run_command
-    from orchestrator.cli.lab import run_overrides
-
-    if as_json and quiet:
-        _fail("--json and --quiet exclude each other", 2)
-    isolate = not in_process and run_command.can_isolate()
-    if resume is not None or scenario is None:  # the scenario then comes from the log
-        failure = run_command.resume(resume, output, (scenario, overrides, periods, plant,
-                                     emulate), as_json=as_json, quiet=quiet, force=force,
-                                     trust=trust, step_timeout_s=step_timeout,
-                                     isolate=isolate)
-    else:
-        lab_items, problem = run_overrides(plant, emulate)
-        if problem is not None:
-            _fail(problem, 2)
-        items = [*lab_items, *(overrides or []),
-                 *([f"periods={periods}"] if periods is not None else [])]
-        failure = run_command.run(scenario, output, items, as_json=as_json, quiet=quiet,
-                                  force=force, trust=trust, step_timeout_s=step_timeout,
-                                  isolate=isolate)
-    if failure is not None:
-        _fail(*failure)
+app.command("run", cls=Command)(run_command.run)
 
 
 @app.command("review", cls=Command)
@@ -272,6 +197,7 @@ def compare(
 app.command("sweep", cls=Command)(sweep_command)
 app.command("plot", cls=Command)(plot.plot)
 app.command("export", cls=Command)(export_command.export)
+app.command("layout", cls=Command)(layout_command)
 scenario_app.command("export-ssp", cls=Command)(export_ssp_command)
 
 

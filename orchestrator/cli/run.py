@@ -15,13 +15,10 @@ mistake (2), one whose run finished is "nothing to resume" (0).
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
 import os
-import re
 import sys
-from datetime import UTC, datetime
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +27,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from orchestrator.cli import tables
 from orchestrator.cli.conventions import count, fail, json_text
+from orchestrator.cli.results import RUNS, reserve_default_output, results_folder
 from orchestrator.cli.run_output import logged_json, period_grid, run_json, summary_line
 from orchestrator.cli.signals import (
     INTERRUPTED_EXIT,
@@ -38,56 +36,68 @@ from orchestrator.cli.signals import (
     terminate_like_ctrl_c,
 )
 
-RUNS = Path("runs")  # where logs go without -o, relative to the working folder
-
-
-def default_name(scenario: Any, now: datetime | None = None) -> str:
-    """<scenario-name>-<UTC time to the ms>-<6 hex digits of the resolved scenario's hash>: runs
-    started in the same millisecond differ when their scenarios (e.g. --set) differ."""
-    stamp = (now or datetime.now(UTC)).strftime("%Y%m%dT%H%M%S.%f")[:-3] + "Z"
-    resolved = json.dumps(scenario.to_dict(), sort_keys=True).encode()
-    digest = hashlib.sha256(resolved).hexdigest()[:6]
-    safe = re.sub(r"[^A-Za-z0-9_.-]+", "-", scenario.name).strip("-.") or "run"
-    return f"{safe}-{stamp}-{digest}"
-
-
-def reserve_default_output(scenario: Any, now: datetime | None = None,
-                           folder: Path = RUNS) -> Path:
-    """Create an empty runs/<default_name>.mcap exclusively and return it; a name taken already
-    (the same scenario started in the same millisecond) gets -2, -3, ... OSError if the folder
-    cannot be made or written."""
-    folder.mkdir(parents=True, exist_ok=True)
-    base = default_name(scenario, now)
-    for attempt in range(1, 1000):
-        path = folder / (f"{base}.mcap" if attempt == 1 else f"{base}-{attempt}.mcap")
-        try:
-            with open(path, "x"):
-                return path
-        except FileExistsError:
-            continue
-    raise FileExistsError(f"{folder / base}.mcap and 998 variants exist")
-
-
 STEP_TIMEOUT_S = 30.0  # default bound on one FMU step (a 10 ms step takes well under 1 ms)
 
 
-def run(scenario_path: Path, output: Path | None, overrides: list[str], *, as_json: bool = False,
-        quiet: bool = False, force: bool = False, trust: bool = False,
-        step_timeout_s: float = STEP_TIMEOUT_S, isolate: bool = False
-        ) -> tuple[str, int] | None:
+@dataclass(frozen=True)
+class LiveSettings:
+    """`run --live`: serve the run over the Foxglove WebSocket protocol on host:port (port 0:
+    any free one), paced at real_time_factor (1: wall-clock speed; orchestrator.live)."""
+
+    port: int = 8765
+    real_time_factor: float = 1.0
+    host: str = "127.0.0.1"
+
+    def problem(self) -> str | None:
+        """One line on what is wrong with these settings, or None."""
+        if not 0 <= self.port <= 65535:
+            return f"--port must be 0..65535 (0: any free port), got {self.port}"
+        if not (math.isfinite(self.real_time_factor) and self.real_time_factor > 0.0):
+            return ("--real-time-factor must be a number > 0 (1: as fast as the machine "
+                    f"digs), got {self.real_time_factor!r}")
+        return None
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """How `excosim run` digs and reports. as_json: one JSON object on stdout; quiet: nothing
+    but errors; force: overwrite -o; trust: run FMU files that are not our builds
+    (orchestrator.cli.trust); step_timeout_s: bound on one FMU step, s (0: none); isolate: dig
+    in a supervised child (run()); live: serve the run live (None: no); out_dir: make a results
+    folder per run in this folder (log, resolved scenario, layout, CSV, figures)."""
+
+    as_json: bool = False
+    quiet: bool = False
+    force: bool = False
+    trust: bool = False
+    step_timeout_s: float = STEP_TIMEOUT_S
+    isolate: bool = False
+    live: LiveSettings | None = None
+    out_dir: Path | None = None
+
+    def problem(self) -> str | None:
+        """One line on what is wrong with these options, or None."""
+        if not (math.isfinite(self.step_timeout_s) and self.step_timeout_s >= 0.0):
+            return f"--step-timeout must be a number of seconds >= 0, got {self.step_timeout_s!r}"
+        return None if self.live is None else self.live.problem()
+
+
+def run(scenario_path: Path, output: Path | None, overrides: list[str],
+        options: RunOptions = RunOptions()) -> tuple[str, int] | None:
     """Run the campaign; None on success, else (one-line message, exit status). An FMU file
-    that is not one of our builds runs only with `trust` (orchestrator.cli.trust); an FMU step
-    that does not return within step_timeout_s (0: no bound) ends the process with status 1.
-    isolate: dig in a supervised child process (orchestrator.campaign.isolation; where
-    `can_isolate()`), so that an FMU that crashes or exits ends the run with the reason in its
-    log."""
-    if not (math.isfinite(step_timeout_s) and step_timeout_s >= 0.0):
-        return f"--step-timeout must be a number of seconds >= 0, got {step_timeout_s!r}", 2
+    that is not one of our builds runs only with `options.trust` (orchestrator.cli.trust); an
+    FMU step that does not return within step_timeout_s (0: no bound) ends the process with
+    status 1. options.isolate: dig in a supervised child process
+    (orchestrator.campaign.isolation; where `can_isolate()`), so that an FMU that crashes or
+    exits ends the run with the reason in its log."""
+    problem = options.problem()
+    if problem is not None:
+        return problem, 2
+    if output is not None and options.out_dir is not None:
+        return "-o and --out-dir exclude each other: --out-dir names the log itself", 2
     with terminate_like_ctrl_c():
         try:
-            return _run(scenario_path, output, overrides, as_json=as_json, quiet=quiet,
-                        force=force, trust=trust, step_timeout_s=step_timeout_s,
-                        isolate=isolate)
+            return _run(scenario_path, output, overrides, options)
         except Terminated:  # before or after the campaign: no log of ours is open
             return f"terminated (SIGTERM) {_OUTSIDE}", TERMINATED_EXIT
         except KeyboardInterrupt:
@@ -97,37 +107,36 @@ def run(scenario_path: Path, output: Path | None, overrides: list[str], *, as_js
 _OUTSIDE = "while loading the scenario or printing the results; no period was cut"
 
 
-def resume(log: Path | None, output: Path | None, given: tuple, *, as_json: bool = False,
-           quiet: bool = False, force: bool = False, trust: bool = False,
-           step_timeout_s: float = STEP_TIMEOUT_S, isolate: bool = False
-           ) -> tuple[str, int] | None:
+def resume(log: Path | None, output: Path | None, given: tuple,
+           options: RunOptions = RunOptions()) -> tuple[str, int] | None:
     """`run --resume LOG`: continue the logged run after its last complete period
     (orchestrator.campaign.resume), in place or into `output`; None on success, else (one
     line, exit status). given: (SCENARIO.toml, --set, --periods, --plant, --emulate) as given,
     none of which may be (the run goes on as it was logged). A run that finished: one line
-    "nothing to resume", exit status 0. isolate: as for run()."""
+    "nothing to resume", exit status 0. options: as for run() (no out_dir)."""
     names = ("SCENARIO.toml", "--set", "--periods", "--plant", "--emulate")
     extra = [name for name, value in zip(names, given, strict=True)
              if value is not None and value is not False]
     if log is None:
         return "missing argument 'SCENARIO.toml' (see 'excosim run -h')", 2
+    if options.out_dir is not None:
+        extra.append("--out-dir")
     if extra:
         return (f"--resume continues the run as its log recorded it: no {', '.join(extra)} "
                 "with it"), 2
-    if not (math.isfinite(step_timeout_s) and step_timeout_s >= 0.0):
-        return f"--step-timeout must be a number of seconds >= 0, got {step_timeout_s!r}", 2
+    problem = options.problem()
+    if problem is not None:
+        return problem, 2
     with terminate_like_ctrl_c():
         try:
-            return _resume(log, output, as_json=as_json, quiet=quiet, force=force, trust=trust,
-                           step_timeout_s=step_timeout_s, isolate=isolate)
+            return _resume(log, output, options)
         except Terminated:
             return f"terminated (SIGTERM) {_OUTSIDE}", TERMINATED_EXIT
         except KeyboardInterrupt:
             return f"interrupted {_OUTSIDE}", INTERRUPTED_EXIT
 
 
-def _resume(log: Path, output: Path | None, *, as_json: bool, quiet: bool, force: bool,
-            trust: bool, step_timeout_s: float, isolate: bool) -> tuple[str, int] | None:
+def _resume(log: Path, output: Path | None, options: RunOptions) -> tuple[str, int] | None:
     import fmus
     from orchestrator.campaign.resume import NothingToResume, ResumeRefused, prepare_resume
     from orchestrator.cli.trust import trust_problem
@@ -136,30 +145,28 @@ def _resume(log: Path, output: Path | None, *, as_json: bool, quiet: bool, force
     try:
         source = prepare_resume(log)
     except NothingToResume as finished:
-        if as_json:
+        if options.as_json:
             print(json_text({"path": str(log), "resumed": False, "message": str(finished)}))
-        elif not quiet:
+        elif not options.quiet:
             print(finished)
         return None
     except (ResumeRefused, ScenarioError) as error:
         return str(error), 2
     except fmus.BuildError as error:
         return str(error), 1
-    refused = trust_problem(source.scenario, trust, quiet)
+    refused = trust_problem(source.scenario, options.trust, options.quiet)
     if refused is not None:
         return refused
     in_place = output is None or (output.exists() and output.resolve() == log.resolve())
     if not in_place:
-        problem = _check_output(output, force)
+        problem = _check_output(output, options.force)
         if problem is not None:
             return problem, 2
-    return _dig(source.scenario, log if in_place else output, reserved=False, force=force,
-                as_json=as_json, quiet=quiet, step_timeout_s=step_timeout_s, resume=source,
-                isolate=isolate)
+    return _dig(source.scenario, log if in_place else output, options, reserved=False,
+                resume=source)
 
 
-def _run(scenario_path: Path, output: Path | None, overrides: list[str], *, as_json: bool,
-         quiet: bool, force: bool, trust: bool, step_timeout_s: float, isolate: bool
+def _run(scenario_path: Path, output: Path | None, overrides: list[str], options: RunOptions
          ) -> tuple[str, int] | None:
     import fmus
     from orchestrator.cli.trust import trust_problem
@@ -171,21 +178,26 @@ def _run(scenario_path: Path, output: Path | None, overrides: list[str], *, as_j
         return str(error), 2
     except fmus.BuildError as error:
         return str(error), 1
-    refused = trust_problem(scenario, trust, quiet)
+    refused = trust_problem(scenario, options.trust, options.quiet)
     if refused is not None:
         return refused
     if output is not None:
-        problem = _check_output(output, force)
+        problem = _check_output(output, options.force)
         if problem is not None:
             return problem, 2
         log_path = output
+    elif options.out_dir is not None:
+        try:
+            log_path = results_folder(scenario, options.out_dir) / "run.mcap"
+        except OSError as error:
+            return (f"--out-dir {str(options.out_dir)!r}: cannot make the run's folder: "
+                    f"{error.strerror or error}"), 2
     else:
         try:
             log_path = reserve_default_output(scenario)
         except OSError as error:
             return f"cannot create a log in {RUNS}/: {error.strerror or error}", 2
-    return _dig(scenario, log_path, reserved=output is None, force=force, as_json=as_json,
-                quiet=quiet, step_timeout_s=step_timeout_s, isolate=isolate)
+    return _dig(scenario, log_path, options, reserved=output is None)
 
 
 def can_isolate() -> bool:
@@ -203,21 +215,19 @@ def can_isolate() -> bool:
     return available()
 
 
-def _dig(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_json: bool,
-         quiet: bool, step_timeout_s: float, resume: Any = None, isolate: bool = False
-         ) -> tuple[str, int] | None:
+def _dig(scenario: Any, log_path: Path, options: RunOptions, *, reserved: bool,
+         resume: Any = None) -> tuple[str, int] | None:
     """Run the campaign (or resume the ResumeSource `resume`) with a progress bar, print the
-    results; None on success, else (one line, exit status). isolate: in a supervised child
-    process (run())."""
-    settings = {"reserved": reserved, "force": force, "as_json": as_json, "quiet": quiet,
-                "step_timeout_s": step_timeout_s, "resume": resume}
-    if not isolate:
-        return _dig_here(scenario, log_path, **settings)
+    results; None on success, else (one line, exit status). options.isolate: in a supervised
+    child process (run())."""
+    settings = {"reserved": reserved, "resume": resume}
+    if not options.isolate:
+        return _dig_here(scenario, log_path, options, **settings)
     from orchestrator.campaign.isolation import ChildDied, supervised
 
     def body() -> tuple[str, int] | None:  # what run() would make of a stop outside _dig_here
         try:
-            return _dig_here(scenario, log_path, **settings)
+            return _dig_here(scenario, log_path, options, **settings)
         except Terminated:
             return f"terminated (SIGTERM) {_OUTSIDE}", TERMINATED_EXIT
         except KeyboardInterrupt:
@@ -232,7 +242,7 @@ def _dig(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_json:
         sys.stderr.write("\r\x1b[2K\x1b[?25h")
     if outcome.periods is not None:
         where = f"log {log_path} is readable up to period {outcome.periods}"
-        if as_json:
+        if options.as_json:
             print(json_text(logged_json(log_path, outcome.message)))
     elif _drop_if_empty(log_path, reserved):
         where = "no log was written"
@@ -241,13 +251,34 @@ def _dig(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_json:
     return f"run failed: {outcome.message} ({where})", 1
 
 
-def _dig_here(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_json: bool,
-              quiet: bool, step_timeout_s: float, resume: Any) -> tuple[str, int] | None:
+def _dig_here(scenario: Any, log_path: Path, options: RunOptions, *, reserved: bool,
+              resume: Any) -> tuple[str, int] | None:
+    from orchestrator.cli.results import serving
+
+    try:
+        with serving(options.live, scenario, log_path, options.quiet) as live:
+            return _dig_live(scenario, log_path, options, reserved, resume, live)
+    except ValueError as error:  # the live view could not start: nothing was dug
+        _drop_if_empty(log_path, reserved)
+        return str(error), 2
+
+
+def _dig_live(scenario: Any, log_path: Path, options: RunOptions, reserved: bool, resume: Any,
+              live: Any) -> tuple[str, int] | None:
     from orchestrator.campaign import PlantRefused, run_campaign
     from orchestrator.campaign.isolation import end_child
     from orchestrator.campaign.resume import ResumeRefused, resume_campaign
 
+    as_json, quiet, force = options.as_json, options.quiet, options.force
+    step_timeout_s = options.step_timeout_s
     err = Console(stderr=True, highlight=False)
+
+    def opened(log: Any) -> None:
+        if live is not None:
+            log.attach_live(live)
+        if not quiet and not as_json:  # where to look while it runs, not only at the end
+            err.print(f"logging to {log_path}", markup=False, soft_wrap=True)
+
     done: list[dict[str, Any]] = list(resume.records) if resume is not None else []
     columns = (TextColumn("[progress.description]{task.description}"), BarColumn(),
                MofNCompleteColumn(), TimeElapsedColumn())
@@ -278,11 +309,13 @@ def _dig_here(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_
 
             if resume is not None:
                 result = resume_campaign(resume, log_path, progress=progress, overwrite=force,
-                                         step_timeout_s=step_timeout_s, on_step_timeout=stuck)
+                                         step_timeout_s=step_timeout_s, on_step_timeout=stuck,
+                                         on_log_opened=opened)
             else:  # a reserved default name is an empty file of ours: no loss to write over
                 result = run_campaign(scenario, log_path=log_path, progress=progress,
                                       overwrite=force or reserved,
-                                      step_timeout_s=step_timeout_s, on_step_timeout=stuck)
+                                      step_timeout_s=step_timeout_s, on_step_timeout=stuck,
+                                      on_log_opened=opened)
     except ResumeRefused as error:
         return str(error), 2
     except KeyboardInterrupt:
@@ -298,6 +331,10 @@ def _dig_here(scenario: Any, log_path: Path, *, reserved: bool, force: bool, as_
     except OSError as error:
         _drop_if_empty(log_path, reserved)
         return f"output {str(log_path)!r}: cannot write it: {error.strerror or error}", 2
+    if options.out_dir is not None:
+        from orchestrator.cli.results import write_results
+
+        write_results(log_path, scenario)
     resumed = f"resumed after period {resume.k}: " if resume is not None else ""
     if as_json:
         payload = run_json(result, log_path)
