@@ -234,7 +234,8 @@ def resume_campaign(source: ResumeSource, output: str | Path | None = None, *,
     new file, an existing one only with `overwrite`). progress, step_timeout_s,
     on_step_timeout, on_log_opened: as run_campaign's. ResumeRefused when the plant refuses
     the state (an FMU that does not take its serialized state), OSError when the log cannot be
-    made: nothing is written then. After that it fails as run_campaign does (termination "error")."""
+    made: nothing is written then. After that it fails as run_campaign does (termination
+    "error")."""
     try:
         log, plant, start = _continue(source, output, overwrite, step_timeout_s,
                                       on_step_timeout)
