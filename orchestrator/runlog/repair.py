@@ -2,11 +2,12 @@
 
 A killed run's file holds every period it finished, each in a complete chunk, but no summary
 (schemas, channels, chunk indexes, statistics): stream readers (ours, `excosim review`) read it
-as it is; indexed readers (Foxglove's and Lichtblick's file loaders, `mcap`'s `make_reader`) need
-the summary. This copies every complete record, in file order, into a new file written by the
-`mcap` package's own writer (its `mcap recover` counterpart), which adds the summary. The part
-of a chunk that was being written when the run died is left out, so the copy holds whole
-periods only. A run that did not finish stays marked so: no end record is made up.
+as it is; Lichtblick (and Foxglove Studio 1.x) read such a file whole into memory with a warning
+("This file is unindexed"), and `mcap`'s `make_reader` needs the summary to seek. This copies
+every complete record, in file order, into a new file written by the `mcap` package's own
+writer (its `mcap recover` counterpart), which adds the summary. The part of a chunk that was
+being written when the run died is left out, so the copy holds whole periods only. A run that
+did not finish stays marked so: no end record is made up.
 """
 
 from __future__ import annotations
