@@ -26,9 +26,12 @@ import math
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import control
 import numpy as np
+
+if TYPE_CHECKING:  # python-control takes about a second to import: only when designing
+    import control
 
 from plant_models.linear_cylinder import LinearCylinderModel
 from plant_models.sim_config import (
@@ -84,12 +87,14 @@ def position_loop(model: LinearCylinderModel, plant: LinearCylinderModel, step_s
                   position_gain_1_s: float) -> control.TransferFunction:
     """(K_p / K_v) ZOH{plant x/u}: the discrete position loop (sample time step_s, s) of the
     law designed on `model` acting on `plant`."""
+    import control
     discrete = control.c2d(plant.transfer_function(), step_s, "zoh")
     return (position_gain_1_s / model.velocity_gain_m_s) * discrete
 
 
 def _margins(loop) -> tuple[float, float, float]:
     """(gain margin dB, phase margin deg, crossover rad/s) by python-control."""
+    import control
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # "falling back to frd" notes for discrete systems
         gm, pm, _, _, wgc, _ = control.stability_margins(loop)
@@ -131,6 +136,7 @@ def design_linear_servo(model: LinearCylinderModel, step_s: float, role: str = "
     ValueError (one line, naming the role and what to change) if targets are below 6 dB /
     45 deg or no gain of at least MIN_POSITION_GAIN_1_S meets them.
     """
+    import control
     if not (math.isfinite(step_s) and step_s > 0.0):
         raise ValueError(f"{role}: step_s must be > 0 s, got {step_s!r}")
     if not (gain_margin_db >= REQUIRED_GAIN_MARGIN_DB

@@ -33,9 +33,12 @@ import math
 import warnings
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
-import control
 import numpy as np
+
+if TYPE_CHECKING:  # python-control takes about a second to import: only when designing
+    import control
 
 from plant_models.cylinder_model import MIN_FORCE_RESERVE, CylinderModel
 from plant_models.sim_config import (
@@ -85,10 +88,12 @@ class ServoDesign:
 
     def position_loop(self) -> control.TransferFunction:
         """Discrete position loop K_p x/w (pressure feedback closed), sample time step_s."""
+        import control
         return control.tf(self.position_loop_num, self.position_loop_den, self.step_s)
 
     def pressure_loop(self) -> control.TransferFunction:
         """Discrete pressure-feedback loop k_f HP F/w, sample time step_s."""
+        import control
         return control.tf(self.pressure_loop_num, self.pressure_loop_den, self.step_s)
 
 
@@ -106,6 +111,7 @@ def discrete_loops(model: CylinderModel, stroke_m: float, step_s: float, positio
 
 def _discretise(model: CylinderModel, stroke_m: float, step_s: float, filter_rad_s: float):
     """(plant [x, F] / w, plant F / w, high-pass filter), discrete, at stroke_m (m)."""
+    import control
     return (control.c2d(model.state_space(stroke_m), step_s, "zoh"),
             control.c2d(model.force_state_space(stroke_m), step_s, "zoh"),
             control.ss(control.c2d(control.tf([1.0, 0.0], [1.0, filter_rad_s]), step_s,
@@ -113,6 +119,7 @@ def _discretise(model: CylinderModel, stroke_m: float, step_s: float, filter_rad
 
 
 def _loops(discretised, position_gain: float, pressure_gain: float):
+    import control
     plant, force_plant, high_pass = discretised
     dpf = pressure_gain * high_pass
     force_only = control.ss([], [], [], [[0.0, 1.0]], dt=plant.dt)  # picks F from [x, F]
@@ -121,6 +128,7 @@ def _loops(discretised, position_gain: float, pressure_gain: float):
 
 
 def _quiet_margins(loop):
+    import control
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # "falling back to frd" notes for discrete systems
         return control.stability_margins(loop)
@@ -129,6 +137,7 @@ def _quiet_margins(loop):
 def _response(system, omega: np.ndarray) -> np.ndarray:
     """Complex frequency response of a discrete SISO system on omega (rad/s), through its
     transfer function (python-control evaluates a state space with one solve per frequency)."""
+    import control
     return np.squeeze(control.ss2tf(system)(np.exp(1j * omega * system.dt)))
 
 
@@ -155,6 +164,7 @@ def _largest_gain(inner, step_s: float, gain_margin_db: float, phase_margin_deg:
 def _pressure_loop_ok(discretised_strokes, pressure_gain: float) -> bool:
     """The pressure loop is stable with the least distance of its Nyquist curve from -1 at
     least MIN_PRESSURE_STABILITY_MARGIN, at every stroke (dense frequency grid)."""
+    import control
     for discretised in discretised_strokes:
         _, pressure_loop, _ = _loops(discretised, 1.0, pressure_gain)
         closed = control.feedback(pressure_loop, 1)
@@ -176,6 +186,7 @@ def design_servo(model: CylinderModel, step_s: float, design_stroke_m: float | N
     design_stroke_m (m, default mid-stroke) sets the oil volumes of the linearisation. Raises
     ValueError if no positive gain meets the margins (a step too long for the hydraulics).
     """
+    import control
     if not (math.isfinite(step_s) and step_s > 0.0):
         raise ValueError(f"step_s must be > 0 s, got {step_s!r}")
     stroke = 0.5 * model.stroke_m if design_stroke_m is None else float(design_stroke_m)

@@ -172,3 +172,13 @@ def completion(
         fail(f"completion: unknown shell {shell!r}; known: {', '.join(SHELLS)}")
         raise typer.Exit(2)
     print(completion_script(shell))
+
+
+def status_on_terminal(quiet: bool) -> None:
+    """Say on stderr, when it is a terminal and not `quiet`, what takes a while before a run
+    starts (a substitute FMU's identification: orchestrator.plants.servo_setup)."""
+    if quiet or not sys.stderr.isatty():
+        return
+    from orchestrator.plants import servo_setup
+
+    servo_setup.on_identify = lambda line: print(line, file=sys.stderr, flush=True)

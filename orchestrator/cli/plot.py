@@ -18,12 +18,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
-import numpy as np
 import typer
 
 from orchestrator.cli.conventions import fail
 
 if TYPE_CHECKING:
+    import numpy as np
     from matplotlib.figure import Figure
 
     from orchestrator.runlog import RunFile
@@ -154,6 +154,8 @@ def _table(run: RunFile, topic: str) -> tuple[dict[str, np.ndarray], np.ndarray,
                                                dict[str, list[str]]]:
     """(column -> values, t_s, period, logged name -> its columns) of a channel or of the
     period table (times: each period's end; values of its numeric columns only)."""
+    import numpy as np
+
     from orchestrator.cli.export import PERIOD_TOPIC, channel_columns, period_frame
 
     if topic == PERIOD_TOPIC:
@@ -200,6 +202,8 @@ def plot_fields(run: RunFile, fields: list[str], period: int | None = None
     """The figure of `fields` (TOPIC:FIELD) of `run` (read with their channels decoded) against
     campaign time (s), only period `period`'s samples if given, one axis per distinct unit;
     and the series drawn. PlotError (one line) for a field the log lacks or an empty period."""
+    import numpy as np
+
     from orchestrator.cli.export import PERIOD_TOPIC
     from orchestrator.review.plots_common import pyplot
     from orchestrator.runlog.units import unit_of

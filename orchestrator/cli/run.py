@@ -26,7 +26,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from orchestrator.cli import tables
-from orchestrator.cli.conventions import count, fail, json_text
+from orchestrator.cli.conventions import count, fail, json_text, status_on_terminal
 from orchestrator.cli.results import RUNS, reserve_default_output, results_folder
 from orchestrator.cli.run_output import logged_json, period_grid, run_json, summary_line
 from orchestrator.cli.signals import (
@@ -173,6 +173,7 @@ def _run(scenario_path: Path, output: Path | None, overrides: list[str], options
     from orchestrator.scenario import ScenarioError, load_scenario
 
     try:
+        status_on_terminal(options.quiet)
         scenario = load_scenario(scenario_path, overrides)
     except ScenarioError as error:
         return str(error), 2

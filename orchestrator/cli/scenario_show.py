@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from orchestrator.cli import tables
+from orchestrator.cli.conventions import status_on_terminal
 from orchestrator.scenario import PLANT_ROLES, Scenario, ScenarioError, load_scenario
 
 
@@ -107,6 +108,7 @@ def show(path: Path, overrides: list[str], as_json: bool,
     from orchestrator.cli.trust import trust_problem
 
     try:
+        status_on_terminal(as_json)
         scenario = load_scenario(path, overrides)
     except ScenarioError as error:
         return str(error), 2

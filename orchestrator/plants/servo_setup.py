@@ -5,11 +5,14 @@ frozen values, and the scenario loader designs every servo once before the run d
 
 from __future__ import annotations
 
+import hashlib
 import math
+from collections.abc import Callable
 from functools import lru_cache
 
 from fmus.descriptions import model_description
 from fmus.runs import value_kind
+from orchestrator.plants.design_cache import remembered
 from orchestrator.plants.identify import identify_cylinder
 from orchestrator.plants.master import fmu_path
 from plant_models.cylinder_model import CylinderModel
@@ -26,11 +29,16 @@ def start_values(description) -> dict[str, float]:
     return values
 
 
+# Told when a substitute FMU's identification runs (seconds; then remembered): the CLI says so.
+on_identify: Callable[[str], None] | None = None
+
+
 @lru_cache(maxsize=64)
 def design_servo_cached(model: CylinderModel, *settings) -> ServoDesign:
-    """plant_models.servo.design_servo, remembered: a pure function of frozen values, and the
-    scenario loader designs every servo once before the run designs it again."""
-    return design_servo(model, *settings)
+    """plant_models.servo.design_servo, remembered in this process and on disk
+    (orchestrator.plants.design_cache): a pure function of frozen values, and the scenario
+    loader designs every servo once before the run designs it again."""
+    return remembered("servo", (model, *settings), lambda: design_servo(model, *settings))
 
 
 def fmu_description(component: str, spec):
@@ -61,14 +69,27 @@ def linear_servo(joint: str, spec, stroke_m: float, config: SimulatedExcavatorCo
     model = spec.linear_model
     if model is None:
         parameters = {**spec.parameters, **(load_mass or {})}
-        identified = identify_cylinder(fmu_path(spec, joint), spec.ports, parameters,
-                                       stroke_m, config.communication_step_s,
-                                       conversions=conversions, sample_s=sample_s)
+        path = fmu_path(spec, joint)
+
+        def identify():
+            if on_identify is not None:
+                on_identify(f"identifying the {joint} FMU {path.name} for its servo (once; "
+                            "remembered after)")
+            return identify_cylinder(path, spec.ports, parameters, stroke_m,
+                                     config.communication_step_s, conversions=conversions,
+                                     sample_s=sample_s)
+
+        inputs = (hashlib.sha256(path.read_bytes()).hexdigest(),
+                  tuple(sorted(parameters.items())), tuple(sorted(spec.ports.items())),
+                  tuple(sorted((conversions or {}).items())), float(stroke_m),
+                  float(config.communication_step_s), sample_s)
+        identified = remembered("identify", inputs, identify)
         model = identified.model
     elif not math.isclose(model.stroke_m, stroke_m, rel_tol=0.01):
         raise ValueError(f"{joint}: linear_model.stroke_m {model.stroke_m} m differs from the "
                          f"linkage's stroke {stroke_m:.4g} m by more than 1 %")
     points = tuple(f.model for f in identified.fits) if identified is not None else ()
-    design = design_linear_servo(model, config.servo_sample_s, joint, points,
-                                 config.servo_gain_margin_db, config.servo_phase_margin_deg)
+    settings = (model, config.servo_sample_s, joint, points, config.servo_gain_margin_db,
+                config.servo_phase_margin_deg)
+    design = remembered("linear_servo", settings, lambda: design_linear_servo(*settings))
     return design, model, identified
