@@ -315,7 +315,7 @@ def test_a_killed_run_keeps_its_finished_periods(tmp_path, fmus):
     assert run.periods == [record(1), record(2)]
     assert not run.finished and run.termination is None and run.truncated
     assert run.message_counts["/pile/bucket"] == 2 * SAMPLES
-    with pytest.raises(RunLogError, match="truncated or damaged after 2 complete periods"):
+    with pytest.raises(RunLogError, match="truncated after 2 complete periods"):
         read_run(path, tolerant=False)
     # The mcap package reads the same messages from the unfinished file.
     masses = []

@@ -1,5 +1,6 @@
 """Reading hostile files: no hang on a FIFO or a device, no memory blow-up from a chunk that
-claims more than it holds; the reader reports such files instead (one line)."""
+claims more than it holds; the reader refuses such files instead (one line; more cases in
+test_run_log_damage.py)."""
 
 import os
 import struct
@@ -11,7 +12,7 @@ from run_log_files import chunks
 
 from orchestrator.campaign import run_campaign
 from orchestrator.runlog import RunLogError, read_run
-from orchestrator.runlog.reader import MAX_CHUNK_BYTES
+from orchestrator.runlog.inflate import MAX_CHUNK_BYTES
 from orchestrator.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -50,7 +51,7 @@ def test_a_fifo_and_a_device_are_refused_without_blocking(tmp_path):
         assert isinstance(error, RunLogError) and "not a regular file" in str(error)
 
 
-def test_a_chunk_claiming_too_many_bytes_ends_the_file_there(two_periods, tmp_path):
+def test_a_chunk_claiming_too_many_bytes_is_refused(two_periods, tmp_path):
     data = bytearray(two_periods.read_bytes())
     second = chunks(two_periods)[1]
     # Chunk record: opcode, length, then start, end, uncompressed size (u64 each).
@@ -59,9 +60,12 @@ def test_a_chunk_claiming_too_many_bytes_ends_the_file_there(two_periods, tmp_pa
     struct.pack_into("<Q", data, at, 1 << 40)
     crafted = tmp_path / "crafted.mcap"
     crafted.write_bytes(bytes(data))
-    run = read_within(crafted)
-    assert not isinstance(run, Exception), run
-    assert run.truncated and len(run.periods) == 1  # period 2's chunk is the damaged one
+    error = read_within(crafted)  # at once, without asking for the 2^40 bytes
+    assert isinstance(error, RunLogError), error
+    assert str(error) == (f"{crafted}: the chunk at byte {second.chunk_start_offset} declares "
+                          "1099511627776 bytes (1 TiB) uncompressed, more than the "
+                          "256 MiB a chunk may hold (a period of a run is 1-130 MB): refused "
+                          "(a damaged or crafted file)")
     assert (1 << 40) > MAX_CHUNK_BYTES
 
 

@@ -103,6 +103,12 @@ def _prepare(path: Path, run: RunFile, data: bytes) -> ResumeSource:
         how = f"dug all {n} planned periods" if run.termination == "periods" else \
             f"stopped at the workspace limit after {n} periods"
         raise NothingToResume(f"{path}: nothing to resume: the run finished ({how})")
+    if run.damage is not None:  # not a killed run: resuming would dig again over the damage
+        n = len(run.periods)
+        raise ResumeRefused(f"{path} is {run.damage}, after {n} complete period"
+                            f"{'s' if n != 1 else ''}: it is not resumed over the damage "
+                            f"(`excosim log repair` copies the periods before it into a new "
+                            "log, which can be resumed)")
     candidates = [k for k in run.resume_states if 1 <= k <= len(run.period_chunks)]
     if not candidates:
         if not run.periods:

@@ -263,8 +263,13 @@ def log_repair(
         _fail(f"{target}: {error.strerror or error}", 2)
     periods = f"{report.periods} complete period{'s' if report.periods != 1 else ''}"
     state = "finished" if report.finished else "did not finish"
-    print(f"wrote {report.target}: {periods}, {report.messages} messages; the run {state}"
-          + ("; the end of the file was cut off and left out" if report.truncated else ""))
+    if report.damage is not None:
+        cut = f"; {run_log} is {report.damage}: " + (
+            "the copy holds what precedes the damage" if report.truncated
+            else "its records were copied as they read")
+    else:
+        cut = "; the end of the file was cut off and left out" if report.truncated else ""
+    print(f"wrote {report.target}: {periods}, {report.messages} messages; the run {state}{cut}")
 
 
 @app.command("emulate", cls=Command)

@@ -111,10 +111,15 @@ def summary_line(report: ReplayReport) -> str:
                f"{_amount(report.max_abs_diff_duration_s, '.2g')} s")
     trusted = sorted({f"{c.attachment} ({c.trusted_by})" for c in report.fmus.values()})
     verdict = "matches" if report.matches else "differs from"
-    if report.termination_compared:
+    if report.damage is not None and report.logged_termination is None:
+        ending = (f"; the log's file is {report.damage}: its complete periods before the "
+                  "damage were replayed")
+    elif report.termination_compared:
         ending = f"; both ended: {report.replayed_termination}"
     else:
         how = "killed" if report.logged_termination is None else "interrupted"
         ending = f"; the logged run was {how}: its complete periods were replayed"
+    if report.damage is not None and report.logged_termination is not None:
+        ending += f"; but the log's file is {report.damage}"
     return (f"replay {verdict} the log: {count(len(report.periods), 'period')}, {largest} "
             f"(tolerance {report.tolerance:g}){ending}; FMUs: {', '.join(trusted)}")

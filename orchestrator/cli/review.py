@@ -213,6 +213,10 @@ def compare_runs(paths: list[Path], as_json: bool,
         if twice:
             out.print(f"note: the same file is given more than once: {', '.join(twice)}",
                       markup=False, soft_wrap=True)
+        for label, data in zip(names, summaries, strict=True):
+            if data["damage"] is not None:
+                out.print(f"note: {label}: {review.ending(data)}", markup=False,
+                          soft_wrap=True)
     if plots is not None:
         from orchestrator.review.plots import plot_error_overlay, save_figure
 
@@ -245,6 +249,8 @@ def _number(value: float | None, digits: int = 2) -> str:
 
 def ended(data: dict[str, Any]) -> str:
     """How a run ended, in a word or two (the compare table's `ended` column)."""
+    if data.get("damage") is not None:
+        return "damaged"
     if data["termination"] is None:
         return "killed" if data["truncated"] else "unfinished"
     if data["termination"] == "error" and data["message"] == "interrupted":

@@ -71,6 +71,8 @@ class ReplayReport:
     termination_compared: whether the two endings were compared (not for a killed or an
         interrupted run: its ending says nothing about the campaign).
     tolerance: the largest absolute difference taken as equal (kg, m, s).
+    damage: where the log's file is damaged (RunFile.damage; the periods before it were
+        replayed), None if it is not.
     """
 
     path: Path
@@ -81,6 +83,7 @@ class ReplayReport:
     replayed_termination: str
     replayed_message: str
     termination_compared: bool
+    damage: str | None = None
 
     @property
     def termination_matches(self) -> bool:
@@ -130,6 +133,7 @@ class ReplayReport:
                             "replayed": self.replayed_termination,
                             "replayed_message": self.replayed_message,
                             "compared": self.termination_compared},
+            "damage": self.damage,
             "fmus": {component: asdict(check) for component, check in self.fmus.items()},
         }
 
@@ -181,7 +185,7 @@ def replay_run(path: str | Path, *, trust: bool = False,
         periods=compare_periods(run.periods, result.records, TOLERANCE), fmus=fmus,
         logged_termination=run.termination,
         replayed_termination=result.termination, replayed_message=result.message,
-        termination_compared=compare_end,
+        termination_compared=compare_end, damage=run.damage,
     )
 
 

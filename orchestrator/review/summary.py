@@ -80,6 +80,8 @@ def summary(run: RunFile) -> dict[str, Any]:
     Keys: path, scenario (name), description, plant ("sim" or "lab"), target_mass_kg (kg),
     termination ("periods", "workspace_limit", "error"; None when the run did not finish),
     message (the end record's line), finished, truncated (the file ends early: a killed run),
+    damage (where the file is damaged, "damaged at byte N (chunk CRC)"; None if it is not: the
+    periods are those before the damage),
     periods (the /period records as the campaign wrote them), figures (`run_figures`),
     versions (package versions the run used), fmus (component -> file sha256), roles (component
     -> {"fmu", "file", "sha256", "content_sha256", "parameters", "ports"}: which model filled
@@ -107,6 +109,7 @@ def summary(run: RunFile) -> dict[str, Any]:
         "message": run.termination_message,
         "finished": run.finished,
         "truncated": run.truncated,
+        "damage": run.damage,
         "periods": run.periods,
         "figures": run_figures(run.periods, band_kg(target_mass_kg(run))),
         "versions": dict(run.metadata.get("excosim.versions", {})),
@@ -221,6 +224,14 @@ _INTERRUPTED = "interrupted"
 def ending(review: dict[str, Any]) -> str:
     """One line on how the campaign ended, for a person (e.g. "dug all 20 planned periods")."""
     n = len(review["periods"])
+    damage = review.get("damage")
+    if damage is not None and not review["finished"]:
+        return f"the file is {damage}; it holds {_count(n, 'complete period')} before the damage"
+    line = _ended(review, n)
+    return line if damage is None else f"{line}; but the file is {damage}"
+
+
+def _ended(review: dict[str, Any], n: int) -> str:
     if not review["finished"]:
         cut = " (the file ends early)" if review["truncated"] else ""
         return f"did not finish: the log holds {_count(n, 'complete period')}{cut}; a killed run?"

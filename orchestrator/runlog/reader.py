@@ -3,23 +3,26 @@ and whether the run finished.
 
 The file is read record by record from the start, so a run that was killed (no summary, maybe
 a partly written last chunk) still gives every period whose chunk is complete. A record is used
-only when all its bytes are there and a chunk only when its CRC matches.
+only when all its bytes are there and a chunk only when its CRC matches; chunks are inflated
+within bounds (orchestrator.runlog.inflate).
+
+A file that ends inside a record is cut short (a killed run: `truncated`). A file whose bytes
+were changed is damaged (`damage`, e.g. "damaged at byte 1014917 (chunk CRC)"): a whole chunk
+whose records do not match the CRC the writer stored, or that do not inflate; in a closed file
+(one that ends with the MCAP magic), a record that runs past its end; the CRC of the data
+section that the writer stores at its end. What precedes a damaged chunk is read.
 """
 
 from __future__ import annotations
 
 import io
-import json
 import stat
 import struct
 import zlib
 from collections.abc import Collection
-from dataclasses import dataclass, field
 from pathlib import Path
 
-import lz4.frame
 import numpy as np
-import zstandard
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.opcode import Opcode
@@ -27,122 +30,17 @@ from mcap.records import Attachment, Channel, Metadata, Schema
 
 from orchestrator.runlog import records
 from orchestrator.runlog.decode import DecodeError, decode, is_numeric, numeric_schema
+from orchestrator.runlog.inflate import CHUNK_HEAD, ChunkRefused
+from orchestrator.runlog.inflate import records as chunk_records
 from orchestrator.runlog.mcap_records import MAGIC
 from orchestrator.runlog.metadata import FORMAT
+from orchestrator.runlog.run_file import ChannelSamples, RunFile, RunLogError
+
+__all__ = ["ChannelSamples", "RunFile", "RunLogError", "parse_run", "read_run"]
 
 _RECORD_PREFIX = struct.Struct("<BQ")
-_CHUNK_HEAD = struct.Struct("<QQQII")  # start, end, uncompressed size, crc, compression length
+_CHUNK_HEAD = CHUNK_HEAD
 _MESSAGE_DATA = 2 + 4 + 8 + 8  # channel id, sequence, log time, publish time
-
-
-class RunLogError(ValueError):
-    """A file that is not a readable excosim run log; the message is one line."""
-
-
-@dataclass
-class ChannelSamples:
-    """The messages of one numeric channel, decoded with the schema stored in the file.
-
-    log_time_ns: (n,) campaign time of each message (ns since the start of period 1).
-    period: (n,) the period (1-based) each message belongs to: the one whose /period record
-    follows it in the file (a period's last sample and the next one's first share a time).
-    fields: field name -> (n,) values (NaN where a message lacks the field) or (n, k) for a
-    repeated field. schema: its name (e.g. "excosim.JointState"). metadata: the channel's
-    metadata (e.g. "names" of a /signals channel as a JSON list).
-    """
-
-    topic: str
-    schema: str
-    log_time_ns: np.ndarray
-    period: np.ndarray
-    fields: dict[str, np.ndarray]
-    metadata: dict[str, str]
-
-    def of_period(self, k: int) -> dict[str, np.ndarray]:
-        """The fields of the messages of period k (1-based)."""
-        lo, hi = np.searchsorted(self.period, [k, k + 1])
-        return {name: values[lo:hi] for name, values in self.fields.items()}
-
-
-@dataclass
-class RunFile:
-    """What a run log holds.
-
-    periods: the /period records in order (dicts as the campaign wrote them).
-    metadata: record name -> key -> value (e.g. metadata["excosim.versions"]["numpy"]).
-    attachments: name -> bytes ("scenario.toml", "fmus/<file name>").
-    message_counts: topic -> number of messages read.
-    period_end_ns: log time (ns) of each /period message, i.e. of each period's end.
-    channels: topic -> ChannelSamples of the numeric channels asked for (`read_run(topics=)`).
-    finished: the run closed its log (an end record is present); termination and
-    termination_message come from it (None if not finished).
-    truncated: the file ends inside a record, lacks its footer or has a damaged chunk (a
-    killed run); everything before that point was read.
-    resume_states: period k -> the JSON bytes of its /resume message (what a resumed run
-    continues from: orchestrator.campaign.resume), for the periods that have one.
-    period_chunks: per period, the file offsets [start, end) of the chunk record that holds its
-    /period record.
-    numeric_topics: the topics whose schema is a protobuf message of doubles (what `topics=`
-    decodes), in the order of their channel records.
-    """
-
-    path: Path
-    periods: list[dict] = field(default_factory=list)
-    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
-    attachments: dict[str, bytes] = field(default_factory=dict)
-    message_counts: dict[str, int] = field(default_factory=dict)
-    period_end_ns: list[int] = field(default_factory=list)
-    channels: dict[str, ChannelSamples] = field(default_factory=dict)
-    finished: bool = False
-    termination: str | None = None
-    termination_message: str | None = None
-    truncated: bool = False
-    resume_states: dict[int, bytes] = field(default_factory=dict)
-    period_chunks: list[tuple[int, int]] = field(default_factory=list)
-    numeric_topics: list[str] = field(default_factory=list)
-
-    @property
-    def scenario(self) -> dict:
-        """The resolved scenario the run used."""
-        return json.loads(self.metadata["excosim.scenario"]["json"])
-
-    @property
-    def scenario_text(self) -> str:
-        """The text of the scenario file the run was started with."""
-        return self.attachments[self.metadata["excosim.run"]["scenario_attachment"]].decode()
-
-    def not_simulated(self, cannot: str) -> str | None:
-        """Why a run that must be simulated again ("be re-simulated", "be resumed": `cannot`)
-        cannot be (one line: a lab run, another plant kind); None for a simulated run."""
-        kind = self.metadata.get("excosim.run", {}).get("plant_kind")
-        if kind == "lab":
-            return (f"{self.path} is a lab run: it was measured on the real machine, so it "
-                    f"cannot {cannot}")
-        if kind != "sim":
-            return f"{self.path}: plant kind {kind!r} cannot {cannot} (only 'sim')"
-        return None
-
-
-# A chunk may declare at most this many uncompressed bytes: a paper period is about 1 MB, a
-# 1 kHz lab period about 8 MB; a crafted chunk declaring 2^40 bytes (or a bomb that inflates a
-# few KB to GBs) is refused as damaged instead of exhausting memory and time.
-MAX_CHUNK_BYTES = 512 << 20
-
-
-def _decompress(compression: str, data: bytes, size: int) -> bytes | None:
-    """The chunk's records, or None when they would not be `size` bytes (damaged or crafted:
-    never inflated beyond the size declared)."""
-    if size > MAX_CHUNK_BYTES:
-        return None
-    if compression == "zstd":
-        return zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
-    if compression == "lz4":
-        decompressor = lz4.frame.LZ4FrameDecompressor()
-        out = decompressor.decompress(data, max_length=size)
-        return out if decompressor.eof else None
-    if compression == "":
-        return data
-    raise RunLogError(f"unsupported chunk compression {compression!r}")
 
 
 class _Scan:
@@ -220,20 +118,14 @@ class _Scan:
         return all(_points_at_messages(view, channel, offsets)
                    for channel, offsets in index.items() if self.topics[channel] == "/period")
 
-    def chunk(self, body: memoryview, index: dict[int, np.ndarray] | None) -> bool:
+    def chunk(self, body: memoryview, index: dict[int, np.ndarray] | None) -> str | None:
         """Read a chunk's records, through its message `index` (channel id -> record offsets)
-        when given and every channel in it is known; False if the chunk is damaged."""
-        _, _, size, crc, name_length = _CHUNK_HEAD.unpack_from(body)
-        at = _CHUNK_HEAD.size
-        compression = bytes(body[at:at + name_length]).decode()
-        at += name_length
-        (data_length,) = struct.unpack_from("<Q", body, at)
-        try:
-            records = _decompress(compression, bytes(body[at + 8:at + 8 + data_length]), size)
-        except (zstandard.ZstdError, RuntimeError):
-            return False
-        if records is None or len(records) != size or (crc != 0 and zlib.crc32(records) != crc):
-            return False
+        when given and every channel in it is known; None, or why the chunk is damaged
+        ("chunk CRC", ...). ChunkRefused for a chunk beyond the bounds (inflate)."""
+        records, damage = chunk_records(body)
+        if records is None:
+            return damage
+        size = len(records)
         view = memoryview(records)
         if index is not None and self._indexed(view, index):
             wanted = []
@@ -248,7 +140,7 @@ class _Scan:
             for offset in np.sort(np.concatenate(wanted)).tolist() if wanted else ():
                 (length,) = struct.unpack_from("<Q", view, offset + 1)
                 self.message(view[offset + 9:offset + 9 + length])
-            return True
+            return None
         pos = 0
         while pos + _RECORD_PREFIX.size <= size:
             opcode, length = _RECORD_PREFIX.unpack_from(view, pos)
@@ -260,7 +152,7 @@ class _Scan:
             elif opcode == Opcode.SCHEMA:
                 self.schema(bytes(inner))
             pos += 9 + length
-        return pos == size
+        return None if pos == size else "chunk records"
 
 
 def _points_at_messages(view: memoryview, channel: int, offsets: np.ndarray) -> bool:
@@ -282,7 +174,8 @@ def _message_index(body: memoryview) -> tuple[int, np.ndarray]:
 
 
 def _scan(path: Path, data: bytes, collect: frozenset[str]) -> tuple[_Scan, bool]:
-    """Every complete record of `data`; returns the scan and whether the footer was reached.
+    """Every complete record of `data` up to any damage; returns the scan and whether the
+    footer was reached (run.damage set when the file is damaged: module docstring).
 
     A chunk is read through the MessageIndex records after it only once a complete record
     follows them (so none of them is missing); otherwise by walking its records.
@@ -296,6 +189,8 @@ def _scan(path: Path, data: bytes, collect: frozenset[str]) -> tuple[_Scan, bool
         opcode, length = _RECORD_PREFIX.unpack_from(view, pos)
         end = pos + _RECORD_PREFIX.size + length
         if end > len(data):
+            if data.endswith(MAGIC) and len(data) > 2 * len(MAGIC):  # a closed file
+                run.damage = f"damaged at byte {pos} (a record runs past the end of the file)"
             break
         body = view[pos + _RECORD_PREFIX.size:end]
         if chunk is not None and opcode == Opcode.MESSAGE_INDEX:
@@ -304,11 +199,9 @@ def _scan(path: Path, data: bytes, collect: frozenset[str]) -> tuple[_Scan, bool
             pos = end
             continue
         if chunk is not None:
-            damaged = not scan.chunk(chunk, index)
-            chunk, index = None, {}
-            if damaged:
+            if not _read_chunk(scan, chunk, index, span):
                 return scan, False
-            _spans(run, span)
+            chunk, index = None, {}
         if opcode == Opcode.FOOTER:
             return scan, data[end:end + len(MAGIC)] == MAGIC
         if opcode == Opcode.CHUNK:
@@ -325,10 +218,30 @@ def _scan(path: Path, data: bytes, collect: frozenset[str]) -> tuple[_Scan, bool
         elif opcode == Opcode.ATTACHMENT:
             record = Attachment.read(ReadDataStream(io.BytesIO(bytes(body))))
             run.attachments[record.name] = record.data
+        elif opcode == Opcode.DATA_END and length >= 4:
+            (stored,) = struct.unpack_from("<I", body)
+            if stored != 0 and stored != zlib.crc32(view[:pos]):
+                run.damage = (f"damaged before byte {pos} (data section CRC; every chunk's "
+                              "own CRC matches)")
         pos = end
-    if chunk is not None and scan.chunk(chunk, None):
-        _spans(run, span)
+    if chunk is not None:
+        _read_chunk(scan, chunk, None, span)
     return scan, False
+
+
+def _read_chunk(scan: _Scan, chunk: memoryview, index: dict[int, np.ndarray] | None,
+                span: tuple[int, int]) -> bool:
+    """scan.chunk of the chunk at `span`; False (run.damage set) when it is damaged."""
+    try:
+        damage = scan.chunk(chunk, index)
+    except ChunkRefused as error:
+        raise RunLogError(f"{scan.run.path}: the chunk at byte {span[0]} {error}: refused "
+                          "(a damaged or crafted file)") from None
+    if damage is not None:
+        scan.run.damage = f"damaged at byte {span[0]} ({damage})"
+        return False
+    _spans(scan.run, span)
+    return True
 
 
 def _spans(run: RunFile, span: tuple[int, int]) -> None:
@@ -384,7 +297,9 @@ def parse_run(path: Path, data: bytes, tolerant: bool = True, topics: Collection
         run.termination = end.get("termination")
         run.termination_message = end.get("message")
     run.truncated = not complete
-    if run.truncated and not tolerant:
-        raise RunLogError(f"{path} is truncated or damaged after {len(run.periods)} complete "
-                          "periods (a killed run?); read it with tolerant=True")
+    if (run.truncated or run.damage) and not tolerant:
+        how = run.damage or "truncated"
+        raise RunLogError(f"{path} is {how} after {len(run.periods)} complete periods"
+                          f"{'' if run.damage else ' (the file ends early: a killed run?)'}; "
+                          "read it with tolerant=True")
     return run

@@ -8,20 +8,29 @@ every complete record, in file order, into a new file written by the `mcap` pack
 writer (its `mcap recover` counterpart), which adds the summary. The part of a chunk that was
 being written when the run died is left out, so the copy holds whole periods only. A run that
 did not finish stays marked so: no end record is made up.
+
+Damaged or hostile bytes end the copy where they begin: a chunk is inflated within the bounds
+of orchestrator.runlog.inflate and used only when its CRC matches (a chunk beyond the bounds
+is refused by the reader that checks the file first), and no record may be longer than the
+file.
 """
 
 from __future__ import annotations
 
+import io
 import struct
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-import zstandard
+from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
-from mcap.records import Attachment, Channel, DataEnd, Header, Message, Metadata, Schema
+from mcap.opcode import Opcode
+from mcap.records import Attachment, Channel, Chunk, DataEnd, Header, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
+from orchestrator.runlog.inflate import ChunkRefused, checked
 from orchestrator.runlog.reader import RunLogError, read_run
 
 # Chunk size of the copy: about one period of a paper run (the writer splits the data at this
@@ -32,7 +41,8 @@ _CHUNK_BYTES = 1 << 20
 @dataclass(frozen=True)
 class RepairReport:
     """source and target paths; messages copied; truncated: the source ended inside a record
-    (a killed run); periods: complete periods in the copy; finished: the run closed its log."""
+    (a killed run) or was damaged; periods: complete periods in the copy; finished: the run
+    closed its log; damage: where the source is damaged (RunFile.damage), None if it is not."""
 
     source: Path
     target: Path
@@ -40,6 +50,7 @@ class RepairReport:
     truncated: bool
     periods: int
     finished: bool
+    damage: str | None = None
 
 
 def repair(source: str | Path, target: str | Path) -> RepairReport:
@@ -57,13 +68,21 @@ def repair(source: str | Path, target: str | Path) -> RepairReport:
     except FileExistsError:
         raise FileExistsError(f"{target} already exists; remove it or choose another name"
                               ) from None
-    with open(source, "rb") as stream, out:
+    try:
+        data = source.read_bytes()
+    except OSError as error:
+        out.close()
+        target.unlink()
+        raise RunLogError(f"cannot read {source}: {error.strerror or error}") from None
+    # From memory: a damaged length then asks a BytesIO, which gives what there is, not a
+    # file object, which would first allocate what the length says.
+    with io.BytesIO(data) as stream, out:
         writer = Writer(out, chunk_size=_CHUNK_BYTES, compression=CompressionType.ZSTD)
         schemas: dict[int, int] = {}
         channels: dict[int, int] = {}
         messages, truncated, started = 0, False, False
         try:
-            for record in StreamReader(stream, emit_chunks=False).records:
+            for record in _records(stream, len(data)):
                 if isinstance(record, Header):
                     writer.start(profile=record.profile, library=record.library)
                     started = True
@@ -85,8 +104,8 @@ def repair(source: str | Path, target: str | Path) -> RepairReport:
                     writer.add_metadata(record.name, dict(record.metadata))
                 elif isinstance(record, DataEnd):
                     break
-        except (McapError, zstandard.ZstdError, EOFError, struct.error, ValueError, KeyError,
-                OverflowError, MemoryError):
+        except (McapError, EOFError, struct.error, ValueError, KeyError, OverflowError,
+                MemoryError):
             # the record being written when the run died, or damaged bytes whose lengths
             # overflow or ask for more memory than there is: left out from there on
             truncated = True
@@ -95,4 +114,32 @@ def repair(source: str | Path, target: str | Path) -> RepairReport:
         writer.finish()
     copy = read_run(target, tolerant=False)
     return RepairReport(source, target, messages, truncated or run.truncated,
-                        len(copy.periods), copy.finished)
+                        len(copy.periods), copy.finished, run.damage)
+
+
+def _records(stream: io.BytesIO, limit: int) -> Iterator:
+    """The records of the MCAP file in `stream` in order, a chunk's records in its place
+    (inflated within bounds; ValueError for a damaged or refused chunk). limit: the file's
+    length, which no record exceeds."""
+    for record in StreamReader(stream, emit_chunks=True, record_size_limit=limit).records:
+        if not isinstance(record, Chunk):
+            yield record
+            continue
+        try:
+            data, damage = checked(record.compression, record.data, record.uncompressed_size,
+                                   record.uncompressed_crc)
+        except ChunkRefused as error:
+            raise ValueError(f"a chunk {error}") from None
+        if data is None:
+            raise ValueError(f"a damaged chunk ({damage})")
+        inner = ReadDataStream(io.BytesIO(data))
+        while inner.count < len(data):
+            opcode, length = inner.read1(), inner.read8()
+            if opcode == Opcode.CHANNEL:
+                yield Channel.read(inner)
+            elif opcode == Opcode.MESSAGE:
+                yield Message.read(inner, length)
+            elif opcode == Opcode.SCHEMA:
+                yield Schema.read(inner)
+            else:
+                inner.read(length)

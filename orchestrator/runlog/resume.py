@@ -33,9 +33,11 @@ from pathlib import Path
 import numpy as np
 from mcap.opcode import Opcode
 
+from orchestrator.runlog.inflate import ChunkRefused
+from orchestrator.runlog.inflate import records as chunk_records
 from orchestrator.runlog.lock import being_written
 from orchestrator.runlog.mcap_records import MAGIC
-from orchestrator.runlog.reader import _CHUNK_HEAD, _decompress, parse_run
+from orchestrator.runlog.reader import parse_run
 from orchestrator.runlog.writer import RunLog
 from plant_models.geometry import ExcavatorGeometry
 
@@ -47,15 +49,12 @@ def continuation_prefix(data: bytes, chunk: tuple[int, int]) -> bytes:
     [start, end)), followed by that chunk's message indexes rebuilt from its records: a data
     section that McapChunkWriter.continued takes. ValueError for a chunk that is not whole."""
     start, end = chunk
-    body = memoryview(data)[start + _RECORD_PREFIX.size:end]
-    _, _, size, _, name_length = _CHUNK_HEAD.unpack_from(body)
-    at = _CHUNK_HEAD.size
-    compression = bytes(body[at:at + name_length]).decode()
-    (length,) = struct.unpack_from("<Q", body, at + name_length)
-    at += name_length + 8
-    records = _decompress(compression, bytes(body[at:at + length]), size)
-    if records is None or len(records) != size:
-        raise ValueError(f"the chunk at byte {start} is damaged")
+    try:
+        records, damage = chunk_records(memoryview(data)[start + _RECORD_PREFIX.size:end])
+    except ChunkRefused as error:
+        raise ValueError(f"the chunk at byte {start} {error}") from None
+    if records is None:
+        raise ValueError(f"the chunk at byte {start} is damaged ({damage})")
     return data[:end] + message_indexes(records)
 
 
