@@ -73,7 +73,8 @@ class PeriodMeasurement:
 
 @runtime_checkable
 class Plant(Protocol):
-    """A machine the campaign can dig with, period after period."""
+    """A machine the campaign can dig with, period after period: run_period and close; the
+    optional parts are PlantExtras, a failure mid-period may be a PeriodStopped."""
 
     kind: str  # "sim" or "lab"
 
@@ -84,6 +85,55 @@ class Plant(Protocol):
     def close(self) -> None:
         """Release every resource (FMU instances, buses); safe to call twice."""
         ...
+
+
+class PeriodStopped(RuntimeError):
+    """A plant's failure in the middle of a period that hands over what it measured until then
+    (`partial`, or None): the campaign logs it without a period record, so nothing measured is
+    lost. Raised from `Plant.run_period` (the lab excavator's LabStop; a tracking bound)."""
+
+    def __init__(self, message: str, partial: PeriodMeasurement | None = None) -> None:
+        super().__init__(message)
+        self.partial = partial
+
+
+class PlantExtras(Protocol):
+    """The optional parts of a plant: each is used when the plant has it, through the function
+    of the same name below (which says what holds without it). The simulated excavator has all
+    of them; the lab excavator none.
+
+    communication_step_s: its sample step, s (without: the scenario's plant.communication_step_s).
+    temporary_folders(): folders it made that must go when a stuck run is ended from another
+        thread (extracted FMUs).
+    initial_pile_surface(): the pile surface before the first period (y (n,) m, z (n,) m).
+    resume_state(): JSON-able state after the last period, for `run --resume`
+        (orchestrator.campaign.resume_state); None when it cannot save one.
+    """
+
+    communication_step_s: float
+
+    def temporary_folders(self) -> list[str]: ...
+
+    def initial_pile_surface(self) -> tuple[np.ndarray, np.ndarray] | None: ...
+
+    def resume_state(self) -> dict | None: ...
+
+
+def communication_step_s(plant: Plant, default_s: float) -> float:
+    """The plant's sample step (s), or `default_s` for a plant that does not say."""
+    return float(getattr(plant, "communication_step_s", default_s))
+
+
+def temporary_folders(plant: Plant) -> list[str]:
+    """The folders the plant asks to be removed if a run is ended for it; [] without."""
+    method = getattr(plant, "temporary_folders", None)
+    return list(method()) if callable(method) else []
+
+
+def resume_state(plant: Plant) -> dict | None:
+    """The plant's saved state after the last period, or None (a plant that cannot save one)."""
+    method = getattr(plant, "resume_state", None)
+    return method() if callable(method) else None
 
 
 def initial_pile_surface(plant: Plant) -> tuple[np.ndarray, np.ndarray] | None:

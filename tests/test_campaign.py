@@ -19,7 +19,7 @@ from orchestrator.scenario import load_scenario, scenario_from_dict
 from planner.digging_path import joint_via_points
 from planner.trajectory import plan_trajectory
 from plant_models.geometry import Unreachable
-from plant_models.plant import JOINTS, PeriodMeasurement
+from plant_models.plant import JOINTS, PeriodMeasurement, PeriodStopped
 
 PAPER = Path(__file__).resolve().parent.parent / "scenarios" / "paper-2020.toml"
 
@@ -261,17 +261,16 @@ def test_an_existing_log_is_refused_before_anything_is_dug_unless_overwritten(pa
 
 
 class StopsMidPeriod(KinematicPlant):
-    """Stops in period 2 after half of it, handing over what it measured (like the lab
-    driver's LabStop)."""
+    """Stops in period 2 after half of it, handing over what it measured as the Plant contract
+    says (a PeriodStopped, like the lab driver's LabStop)."""
 
     def run_period(self, reference):
         measured = super().run_period(reference)
         if len(self.references) == 2:
             half = len(measured.t_s) // 2
-            error = RuntimeError("emergency stop (test double)")
-            error.partial = PeriodMeasurement(measured.t_s[:half], measured.joints_rad[:half],
-                                              measured.reference_rad[:half], float("nan"))
-            raise error
+            raise PeriodStopped("emergency stop (test double)", PeriodMeasurement(
+                measured.t_s[:half], measured.joints_rad[:half], measured.reference_rad[:half],
+                float("nan")))
         return measured
 
 

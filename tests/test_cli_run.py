@@ -101,8 +101,7 @@ def test_a_runtime_failure_exits_1_and_leaves_a_readable_log(tmp_path, monkeypat
     log = tmp_path / "failed.mcap"
     result = CliRunner().invoke(app, ["run", str(PAPER), "-o", str(log)])
     assert result.exit_code == 1
-    assert result.stderr == (f"logging to {log}\n"
-                             f"excosim: run failed: period 2: RuntimeError: hydraulic hose burst "
+    assert result.stderr == (f"excosim: run failed: period 2: RuntimeError: hydraulic hose burst "
                              f"(test double) (log {log} is readable up to period 1)\n")
     assert "Traceback" not in result.output
     run = read_run(log)

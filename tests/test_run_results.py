@@ -29,8 +29,40 @@ def results(tmp_path_factory) -> Path:
                                "--set", "plant.load_cell_noise_kg=0.5"])
     assert done.exit_code == 0, done.output
     (folder,) = parent.iterdir()
-    assert f"logging to {folder / 'run.mcap'}" in done.stderr  # said when the run starts
     return folder
+
+
+def test_at_a_terminal_the_run_says_where_it_logs_before_it_digs(tmp_path):
+    """stderr a terminal (a pseudo-terminal here): the log's path is the first line, written
+    before a period is weighed (the progress bar then says "(last ... kg)")."""
+    import os
+    import pty
+    import subprocess
+    import sys
+
+    controller, terminal = pty.openpty()
+    process = subprocess.Popen(
+        [str(Path(sys.executable).parent / "excosim"), "run", str(PAPER), "--periods", "2",
+         "-o", "tty.mcap"], cwd=tmp_path, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+        stderr=terminal)
+    os.close(terminal)
+    seen = b""
+    try:
+        while True:
+            try:
+                chunk = os.read(controller, 4096)
+            except OSError:  # the terminal closed: the run is over
+                break
+            if not chunk:
+                break
+            seen += chunk
+    finally:
+        process.wait(timeout=300)
+        os.close(controller)
+    text = seen.decode(errors="replace")
+    said = text.find(f"logging to {Path('tty.mcap')}")
+    assert 0 <= said < text.find("(last "), text[-2000:]  # before a period was weighed
+    assert process.returncode == 0
 
 
 def test_the_folder_holds_the_log_scenario_layout_table_and_figures(results):

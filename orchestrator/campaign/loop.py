@@ -45,8 +45,11 @@ from plant_models.plant import (
     JOINTS,
     JointReference,
     PeriodMeasurement,
+    PeriodStopped,
     Plant,
+    communication_step_s,
     initial_pile_surface,
+    temporary_folders,
 )
 
 # End message of a campaign stopped from outside (Ctrl-C, SystemExit): its ending says nothing
@@ -238,7 +241,7 @@ def run_opened(scenario: Scenario, log, plant: Plant | None, start: Start,
                 log.close("error", message)
             except Exception:  # noqa: BLE001 - a full disk must not keep the run hanging
                 pass
-        for folder in getattr(plant, "temporary_folders", lambda: [])():
+        for folder in temporary_folders(plant) if plant is not None else ():
             shutil.rmtree(folder, ignore_errors=True)
         on_step_timeout(message)
 
@@ -268,7 +271,7 @@ def _dig(scenario: Scenario, plant: Plant, log, records: list,
          progress: Callable[[dict[str, Any]], None] | None, start: Start) -> tuple[str, str]:
     planner = scenario.period_planner()
     adaptation = adaptation_strategy(scenario, planner)
-    step_s = float(getattr(plant, "communication_step_s", scenario.plant.communication_step_s))
+    step_s = communication_step_s(plant, scenario.plant.communication_step_s)
     rated_kg = rated_payload_kg(scenario)  # the fill factor's reference, the same every period
     if start.state is None:
         decision: Decision = adaptation.initial()
@@ -297,7 +300,7 @@ def _dig(scenario: Scenario, plant: Plant, log, records: list,
             check_tracking(measurement, scenario.plant.max_tracking_error_deg)
         except Exception as failure:
             # A plant that stops mid-period may hand over what it measured: log it too.
-            partial = getattr(failure, "partial", None)
+            partial = failure.partial if isinstance(failure, PeriodStopped) else None
             if log is not None and isinstance(partial, PeriodMeasurement):
                 try:
                     log.log_unfinished(partial, t0_s)
@@ -326,13 +329,9 @@ def _dig(scenario: Scenario, plant: Plant, log, records: list,
     return "periods", f"{scenario.periods} period(s) dug"
 
 
-class TrackingError(RuntimeError):
+class TrackingError(PeriodStopped):
     """A period whose tracking error went beyond the scenario's bound; `partial` holds its
     measurement (logged without a period record: its numbers are not reported)."""
-
-    def __init__(self, message: str, partial: PeriodMeasurement) -> None:
-        super().__init__(message)
-        self.partial = partial
 
 
 def check_tracking(measurement: PeriodMeasurement, bound_deg: float) -> None:

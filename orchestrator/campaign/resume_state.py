@@ -19,6 +19,7 @@ import math
 from typing import Any
 
 from planner.adaptation import AdaptationState
+from plant_models.plant import resume_state as plant_resume_state
 
 RESUME_FORMAT = 1
 
@@ -30,9 +31,8 @@ def resume_record(plant: Any, state: AdaptationState, weighed_mass_kg: float,
     t0_next_s: the next period's start, s; strategy: what the adaptation strategy learnt, JSON
     data, or None); None for a plant that cannot save its state (the lab excavator, an FMU
     without state serialization)."""
-    capture = getattr(plant, "resume_state", None)
     try:
-        saved = capture() if capture is not None else None
+        saved = plant_resume_state(plant)
     except Exception:  # noqa: BLE001 - a run is not failed for what only a resume would need
         saved = None
     if saved is None:

@@ -277,7 +277,8 @@ def _dig_live(scenario: Any, log_path: Path, options: RunOptions, reserved: bool
     def opened(log: Any) -> None:
         if live is not None:
             log.attach_live(live)
-        if not quiet and not as_json:  # where to look while it runs, not only at the end
+        # At a terminal, where to look while it runs (a script gets the path at the end).
+        if not quiet and not as_json and err.is_terminal:
             err.print(f"logging to {log_path}", markup=False, soft_wrap=True)
 
     done: list[dict[str, Any]] = list(resume.records) if resume is not None else []

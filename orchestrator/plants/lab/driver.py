@@ -40,16 +40,16 @@ from orchestrator.plants.lab.protocol import Cmd, MasterState, State, decode, en
 from orchestrator.plants.lab.safety import ReferenceRefused, check_stream, on_stream_grid
 from orchestrator.plants.lab.settings import LabSettings
 from orchestrator.plants.lab.timing import Heartbeat, ScaledClock, collector_paused
-from plant_models.plant import JOINTS, JointReference, PeriodMeasurement
+from plant_models.plant import JOINTS, JointReference, PeriodMeasurement, PeriodStopped
 
 
-class LabStop(RuntimeError):
+class LabStop(PeriodStopped):
     """The lab plant stopped the campaign (`reason`); `partial`: what the stopped period had
     measured (None if nothing)."""
 
     def __init__(self, reason: str, partial: PeriodMeasurement | None = None) -> None:
-        super().__init__(reason)
-        self.reason, self.partial = reason, partial
+        super().__init__(reason, partial)
+        self.reason = reason
 
 
 class LabExcavator:
