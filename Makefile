@@ -19,8 +19,9 @@ $(PY):
 	$(PYTHON) -m venv $(VENV)
 
 # The project itself: editable, built with the locked setuptools (no build isolation, which would
-# fetch whatever setuptools is newest that day), with no dependency resolution of its own.
-$(RUN_STAMP): pyproject.toml requirements/run.txt | $(PY)
+# fetch whatever setuptools is newest that day), with no dependency resolution of its own;
+# setup.py compiles the FMUs and native libraries into fmus/_built/ (gcc is needed here only).
+$(RUN_STAMP): pyproject.toml setup.py requirements/run.txt | $(PY)
 	$(PIP) -r requirements/run.txt
 	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
 	$(PY) -m pip check
