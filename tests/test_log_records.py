@@ -30,10 +30,10 @@ def log(tmp_path_factory):
 
 
 def rewrite(source: Path, target: Path, period=None, scenario=None,
-            unfinished: bool = False) -> Path:
+            unfinished: bool = False, header=None) -> Path:
     """A copy of the log with /period record 2 (period: old JSON text -> new bytes) or the
     scenario record (scenario: -> new JSON text) replaced; unfinished: without its end record
-    (a run that was stopped)."""
+    (a run that was stopped); header: a function that changes the excosim.run record (dict)."""
     with open(source, "rb") as stream, open(target, "wb") as out:
         writer = Writer(out)
         topics, seen = {}, 0
@@ -63,11 +63,18 @@ def rewrite(source: Path, target: Path, period=None, scenario=None,
                 values = dict(record.metadata)
                 if record.name == "excosim.scenario" and scenario is not None:
                     values["json"] = scenario
+                if record.name == "excosim.run" and header is not None:
+                    values = header(values)
                 writer.add_metadata(record.name, values)
             elif isinstance(record, DataEnd):
                 break
         writer.finish()
     return target
+
+
+def without_digest(header: dict) -> dict:
+    """The excosim.run record as versions before the scenario digest wrote it."""
+    return {key: value for key, value in header.items() if key != "scenario_sha256"}
 
 
 def _edit(key, value):
@@ -127,16 +134,111 @@ def test_the_untouched_copy_reads_as_the_original(log, tmp_path):
 
 
 def test_resume_refuses_what_it_would_copy_wrongly(log, tmp_path):
-    """A bad period record, or a scenario record whose target disagrees with the header, is
-    refused in one line before anything is written (exit 2)."""
+    """A bad period record, or a scenario record whose target disagrees with the header (in a
+    log of a version without the header's digest), is refused in one line before anything is
+    written (exit 2)."""
     from orchestrator.campaign.resume import ResumeRefused, prepare_resume
 
     scenario = read_run(log).scenario
     edited = rewrite(log, tmp_path / "edited.mcap",
                      scenario=json.dumps({**scenario, "target_mass_kg": 20.0}),
-                     unfinished=True)
+                     unfinished=True, header=without_digest)
     bad = rewrite(log, tmp_path / "bad.mcap", period=lambda text: b"[1, 2]", unfinished=True)
     for source, words in ((edited, "its header's target (30.0 kg) and its scenario record's "
                            "(20 kg) disagree"), (bad, "/period record 2 is a JSON array")):
         with pytest.raises(ResumeRefused, match=words.replace("(", r"\(").replace(")", r"\)")):
             prepare_resume(source)
+
+
+def excosim(*args) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "orchestrator.cli.app", *map(str, args)],
+                          capture_output=True, text=True, timeout=300)
+
+
+def refused_by_resume(path: Path, words: str) -> None:
+    """`run --resume` of `path`: one line holding `words`, exit 2, nothing written."""
+    before = {p.name: p.read_bytes() for p in path.parent.iterdir()}
+    done = excosim("run", "--resume", path)
+    lines = done.stderr.strip().splitlines()
+    assert done.returncode == 2, done.stderr[-500:]
+    assert len(lines) == 1 and words in lines[0], lines
+    assert "Traceback" not in done.stderr and done.stdout == ""
+    assert {p.name: p.read_bytes() for p in path.parent.iterdir()} == before
+
+
+def test_the_header_holds_the_digest_of_the_scenario_record(log):
+    from orchestrator.runlog.metadata import scenario_digest
+
+    run = read_run(log)
+    assert run.metadata["excosim.run"]["scenario_sha256"] == scenario_digest(
+        run.metadata["excosim.scenario"]["json"])
+
+
+@pytest.mark.parametrize("edit", [
+    ("target_mass_kg", 20.0), ("plant", "pile", "parameters", "density", 1200.0),
+    ("adaptation", "y_D0_m", -8.5)], ids=["target", "density", "y_D0"])
+def test_resume_refuses_a_scenario_record_edited_since_the_run_began(log, tmp_path, edit):
+    """The header's digest names the scenario record the run began with: any edit of it (the
+    saved states would silently override some, and a combined log would mix two scenarios) is
+    refused; a log of an older version (no digest) still has its target compared."""
+    from orchestrator.campaign.resume import ResumeRefused, prepare_resume
+
+    scenario = read_run(log).scenario
+    table = scenario
+    for key in edit[:-2]:
+        table = table[key]
+    assert table.get(edit[-2]) != edit[-1]  # the density is the FMU default's unless set
+    table[edit[-2]] = edit[-1]
+    folder = tmp_path / "edited"
+    folder.mkdir()
+    edited = rewrite(log, folder / "run.mcap", scenario=json.dumps(scenario), unfinished=True)
+    refused_by_resume(edited, "its scenario record (excosim.scenario) is not the one its "
+                      "header recorded at the start (scenario_sha256 ")
+    older = rewrite(log, tmp_path / "older.mcap", scenario=json.dumps(scenario),
+                    unfinished=True, header=without_digest)
+    if edit[0] == "target_mass_kg":
+        with pytest.raises(ResumeRefused, match="header's target"):
+            prepare_resume(older)
+    untouched = rewrite(log, tmp_path / "untouched.mcap", unfinished=True)
+    prepare_resume(untouched).release()  # the same copy without the edit resumes
+
+
+def test_resume_refuses_records_that_disagree_with_the_state_or_each_other(log, tmp_path):
+    from orchestrator.campaign.resume import ResumeRefused, prepare_resume
+
+    for change, words in (
+            (_edit("mass_kg", 1.0), "/period record 2: its error"),
+            (lambda text: text.replace('"k": 2', '"k": 1').encode(),
+             "/period record 2 says it is period 1"),
+            (lambda text: text.replace('"error_kg": ', '"error_kg": 0.5, "x": ').replace(
+                '"mass_kg": ', '"mass_kg": 29.5, "y": ').encode(),
+             "the resume state after period 2 weighed")):
+        bad = rewrite(log, tmp_path / "bad.mcap", period=change, unfinished=True)
+        with pytest.raises(ResumeRefused, match=words):
+            prepare_resume(bad)
+
+
+def test_resume_refuses_a_duplicated_channel_record(log, tmp_path):
+    """A channel record repeated in the part a resume copies (bytes as they were, or the same
+    channel registered again under a new id) is one line, exit 2, nothing written."""
+    import struct
+
+    from mcap.opcode import Opcode
+    from run_log_files import cut_inside_chunk
+
+    killed = cut_inside_chunk(log, tmp_path / "killed.mcap")  # died in period 2
+    data = killed.read_bytes()
+    pos, channels = 8, []
+    while pos + 9 <= len(data):
+        opcode, length = struct.unpack_from("<BQ", data, pos)
+        if opcode == Opcode.CHANNEL:
+            channels.append((pos, pos + 9 + length))
+        pos += 9 + length
+    start, end = channels[3]
+    folder = tmp_path / "twice"
+    folder.mkdir()
+    twice = folder / "run.mcap"
+    twice.write_bytes(data[:end] + data[start:end] + data[end:])
+    assert len(read_run(twice).periods) == 1  # the reader itself takes it
+    refused_by_resume(twice, "the part a resume copies is not as its writer left it: "
+                      "channel 4 (/cylinder/boom) is recorded twice")

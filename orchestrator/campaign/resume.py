@@ -10,7 +10,10 @@ from (/resume: orchestrator.campaign.resume_state, orchestrator.plants.plant_sta
 2. validates the scenario the log records (`excosim.scenario`: the scenario file's text with
    its `--set` items applied, resolved) as this version reads it, and checks that the FMUs it
    would run now have the content hashes the log records (`excosim.fmu_content`): with other
-   FMUs it would not be the same run;
+   FMUs it would not be the same run; and checks what it copies as strictly as a fresh read:
+   the scenario record is the one the header's digest names, the period records, the resume
+   state and the header tell one run, the schema and channel records are each there once, the
+   file is not damaged;
 3. builds the plant and restores the state logged after the last complete period k that has
    one (each FMU validates its own serialized state);
 4. only then writes: the log's bytes up to period k, then periods k+1.. (orchestrator.runlog
@@ -24,16 +27,21 @@ comes back at the same place. Refusals are ResumeRefused (one line), before anyt
 from __future__ import annotations
 
 import io
+import math
+import struct
 from collections.abc import Callable
 from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from mcap.exceptions import McapError
+
 from orchestrator.campaign.loop import CampaignResult, Start, build_plant, run_opened
 from orchestrator.campaign.resume_state import parse_resume_record
 from orchestrator.campaign.watchdog import StepWatchdog
 from orchestrator.runlog.reader import RunFile, RunLogError, parse_run
+from orchestrator.runlog.resume import check_prefix
 from orchestrator.scenario.model import Scenario
 
 FINISHED = ("periods", "workspace_limit")  # endings after which nothing is left to dig
@@ -133,16 +141,9 @@ def _prepare(path: Path, run: RunFile, data: bytes) -> ResumeSource:
         raise ResumeRefused(f"{path}: {problem}")
     if not isinstance(scenario_data, dict):
         raise ResumeRefused(f"{path}: the scenario record (excosim.scenario) is not an object")
+    _check_digest(path, run)
     scenario = scenario_from_dict(scenario_data, source=path.name)
-    header = run.metadata.get("excosim.run", {}).get("target_mass_kg")
-    try:
-        edited = header is not None and float(header) != float(scenario.target_mass_kg)
-    except ValueError:
-        edited = True
-    if edited:
-        raise ResumeRefused(f"{path}: its header's target ({header} kg) and its scenario "
-                            f"record's ({scenario.target_mass_kg:g} kg) disagree: the log was "
-                            "edited, and a resumed run would mix two scenarios")
+    _check_agreement(path, run, float(scenario.target_mass_kg), record, k)
     if k > scenario.periods:
         raise ResumeRefused(f"{path} holds {k} periods, more than its scenario's "
                             f"{scenario.periods}")
@@ -152,7 +153,58 @@ def _prepare(path: Path, run: RunFile, data: bytes) -> ResumeSource:
         prefix = continuation_prefix(data, run.period_chunks[k - 1])
     except (ValueError, IndexError) as error:
         raise ResumeRefused(f"{path}: period {k}'s chunk: {error}") from None
+    try:
+        check_prefix(prefix)
+    except (ValueError, struct.error, McapError) as error:
+        raise ResumeRefused(f"{path}: the part a resume copies is not as its writer left it: "
+                            f"{error}") from None
     return ResumeSource(path, run, scenario, k, record, prefix)
+
+
+_EDITED = "the log was edited, and a resumed run would mix two scenarios"
+
+
+def _check_digest(path: Path, run: RunFile) -> None:
+    """The scenario record is the one the header's digest names (logs from before the digest:
+    nothing to check here; _check_agreement still compares the target)."""
+    from orchestrator.runlog.metadata import scenario_digest
+
+    digest = run.metadata.get("excosim.run", {}).get("scenario_sha256")
+    if digest is None:
+        return
+    if scenario_digest(run.metadata["excosim.scenario"]["json"]) != digest:
+        raise ResumeRefused(f"{path}: its scenario record (excosim.scenario) is not the one its "
+                            f"header recorded at the start (scenario_sha256 {digest[:12]}): "
+                            + _EDITED)
+
+
+def _check_agreement(path: Path, run: RunFile, target: float, record: dict[str, Any],
+                     k: int) -> None:
+    """The header, the period records 1..k and the resume state after k tell one run: the
+    header's target is the scenario's, each record is the period of its place and its error
+    the target minus its mass, and the state's weighing is period k's mass."""
+    header = run.metadata.get("excosim.run", {}).get("target_mass_kg")
+    try:
+        edited = header is not None and float(header) != target
+    except ValueError:
+        edited = True
+    if edited:
+        raise ResumeRefused(f"{path}: its header's target ({header} kg) and its scenario "
+                            f"record's ({target:g} kg) disagree: " + _EDITED)
+    for place, period in enumerate(run.periods[:k], start=1):
+        if period["k"] != place:
+            raise ResumeRefused(f"{path}: /period record {place} says it is period "
+                                f"{period['k']}: the records were edited or duplicated")
+        if not math.isclose(period["error_kg"], target - period["mass_kg"], rel_tol=1e-12,
+                            abs_tol=1e-9):
+            raise ResumeRefused(f"{path}: /period record {place}: its error "
+                                f"({period['error_kg']:g} kg) is not the scenario's target "
+                                f"({target:g} kg) minus its mass ({period['mass_kg']:g} kg): "
+                                + _EDITED)
+    if record["weighed_mass_kg"] != run.periods[k - 1]["mass_kg"]:
+        raise ResumeRefused(f"{path}: the resume state after period {k} weighed "
+                            f"{record['weighed_mass_kg']:g} kg, its /period record "
+                            f"{run.periods[k - 1]['mass_kg']:g} kg: the log was edited")
 
 
 def _check_strategy(path: Path, scenario, record: dict[str, Any], k: int) -> None:

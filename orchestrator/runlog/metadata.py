@@ -169,6 +169,12 @@ def fmi_version(data: bytes) -> str:
         return ""
 
 
+def scenario_digest(scenario_json: str) -> str:
+    """The sha256 (hex) of the resolved scenario's JSON text as the excosim.scenario record
+    holds it."""
+    return hashlib.sha256(scenario_json.encode()).hexdigest()
+
+
 def write_run_description(writer: McapChunkWriter, *, scenario_json: str, scenario_text: str,
                           scenario_name: str, fmus: dict[str, tuple[str, bytes]],
                           plant_kind: str, target_mass_kg: float,
@@ -177,7 +183,9 @@ def write_run_description(writer: McapChunkWriter, *, scenario_json: str, scenar
                           derived: Mapping[str, Mapping[str, str]] | None = None,
                           arm_coupling: Mapping[str, str] | None = None,
                           notes: Mapping[str, Mapping[str, str]] | None = None) -> None:
-    """The metadata records and attachments a run log starts with (`orchestrator.runlog.writer`)."""
+    """The metadata records and attachments a run log starts with (`orchestrator.runlog.writer`).
+    The header (excosim.run) records scenario_sha256, the digest of the scenario record
+    (`scenario_digest`): a resume refuses a log whose scenario record was edited since."""
     versions = package_versions()
     scenario_file, scenario_media = scenario_attachment(scenario_text)
     writer.add_metadata("excosim.run", {
@@ -188,6 +196,7 @@ def write_run_description(writer: McapChunkWriter, *, scenario_json: str, scenar
         "time_base": "log time = campaign time in ns since the start of period 1",
         "frames": FRAMES_DOC,
         "overrides": to_json(list(overrides or []), "overrides"),
+        "scenario_sha256": scenario_digest(scenario_json),
     })
     writer.add_metadata("excosim.scenario", {"json": scenario_json})
     writer.add_metadata("excosim.versions", versions)

@@ -23,6 +23,7 @@ of orchestrator.campaign.isolation): its whole periods, then the end record with
 
 from __future__ import annotations
 
+import io
 import os
 import stat
 import struct
@@ -31,12 +32,14 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
+from mcap.data_stream import ReadDataStream
 from mcap.opcode import Opcode
+from mcap.records import Channel, Schema
 
 from orchestrator.runlog.inflate import ChunkRefused
 from orchestrator.runlog.inflate import records as chunk_records
 from orchestrator.runlog.lock import being_written
-from orchestrator.runlog.mcap_records import MAGIC
+from orchestrator.runlog.mcap_records import MAGIC, McapChunkWriter
 from orchestrator.runlog.reader import parse_run
 from orchestrator.runlog.writer import RunLog
 from plant_models.geometry import ExcavatorGeometry
@@ -56,6 +59,39 @@ def continuation_prefix(data: bytes, chunk: tuple[int, int]) -> bytes:
     if records is None:
         raise ValueError(f"the chunk at byte {start} is damaged ({damage})")
     return data[:end] + message_indexes(records)
+
+
+def check_prefix(prefix: bytes) -> None:
+    """ValueError (one line) unless `prefix` (continuation_prefix) is a data section that a
+    continued writer takes as its own (McapChunkWriter.continued: schema and channel ids 1, 2,
+    ... in order) and goes on with unambiguously: each schema and channel recorded once (not a
+    duplicated record), every channel's schema present, no schema name twice, no topic twice
+    with the same metadata."""
+    schemas: dict[int, str] = {}
+    channels: dict[int, str] = {}
+    keys = set()
+    pos = len(MAGIC)
+    while pos + _RECORD_PREFIX.size <= len(prefix):
+        opcode, length = _RECORD_PREFIX.unpack_from(prefix, pos)
+        body = ReadDataStream(io.BytesIO(prefix[pos + _RECORD_PREFIX.size:
+                                                pos + _RECORD_PREFIX.size + length]))
+        pos += _RECORD_PREFIX.size + length
+        if opcode == Opcode.SCHEMA:
+            schema = Schema.read(body)
+            if schema.id in schemas or schema.name in schemas.values():
+                raise ValueError(f"schema {schema.id} ({schema.name}) is recorded twice")
+            schemas[schema.id] = schema.name
+        elif opcode == Opcode.CHANNEL:
+            channel = Channel.read(body)
+            key = (channel.topic, tuple(sorted(channel.metadata.items())))
+            if channel.id in channels or key in keys:
+                raise ValueError(f"channel {channel.id} ({channel.topic}) is recorded twice")
+            if channel.schema_id != 0 and channel.schema_id not in schemas:
+                raise ValueError(f"channel {channel.id} ({channel.topic}) names schema "
+                                 f"{channel.schema_id}, which the log does not hold before it")
+            channels[channel.id] = channel.topic
+            keys.add(key)
+    McapChunkWriter.continued(io.BytesIO(), prefix).abandon()  # its own checks
 
 
 def header_prefix(data: bytes) -> bytes:
