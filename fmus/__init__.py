@@ -1,7 +1,8 @@
 """Our FMI 2.0 Co-Simulation FMUs: C sources per model, the shared FMI layer and the builder.
 
     fmus.MODELS            names of the model folders, e.g. ("HydraulicCylinder", ...)
-    fmus.build(name)       -> Path of the built (or cached) .fmu
+    fmus.build(name)       -> Path of the .fmu built with the package (fmus.packaged; no
+                              compiler needed), or built with gcc (cached) after an edit
     fmus.build_all()       -> {name: Path}
     fmus.build_model(dir)  -> Path, for a model folder outside the package (same rules)
     fmus.demo()            -> short text summary of a brief simulation of every FMU

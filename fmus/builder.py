@@ -1,82 +1,74 @@
 """Compile a model folder into an FMI 2.0 (or 3.0) Co-Simulation FMU with plain gcc, cached by
-content.
+content; or find it built when the package was built (fmus.packaged), without a compiler.
 
 A model folder fmus/<Model>/ holds variables.toml and the physics (model.c and any other .c/.h);
 fmus/common/ holds the shared FMI layers (fmi2_*.c for FMI 2.0, fmi3_*.c for FMI 3.0) and
 fmus/shared/<name>/ physics that several models compile in (`shared = [...]` in [model]).
 
-The build key is a hash of everything that goes into an FMU (FMI version, sources, table, flags,
-compiler version, FMI headers, this builder); the GUID (FMI 3: instantiationToken) is derived
-from it. The FMU goes to $EXCOSIM_FMU_DIR (default ~/.cache/excosim/fmus/) as
-<Model>-<key12>/<Model>.fmu (FMI 3.0: fmi3/<Model>-<key12>/<Model>.fmu), <key12> the key's first
-12 hex digits: source trees that differ never share a file, trees that agree share the build.
-Next to it, content.sha256 holds the FMU's content hash (fmus.identity.content_hash: model
-description, binaries, sources) as built. A cached FMU is used only when its GUID is the key's and
-its content hash is the recorded one; anything else (a binary replaced inside the zip, a cut
-file) is rebuilt. Both files are written to a temporary name and renamed into place (atomic).
-Builds are byte-reproducible: gcc runs in the source folder on relative names (no temporary path
-gets into the binary), the zip entries are written in a fixed order with a fixed date and mode.
-The cache only grows; removing the folder is always safe.
+Two keys. The source key (`source_key`) hashes what the sources make an FMU of: FMI version,
+sources, table, flags, the binaries' platform folder, this builder and its code generators; no
+compiler is needed to compute it. The build key adds the compiler's version and the FMI headers;
+the GUID (FMI 3: instantiationToken) derives from it. `build(name)` returns the FMU built with
+the package (fmus/_built/) when its recorded source key is the sources' now; else (a user's
+edit of the C sources, say) it builds with gcc into $EXCOSIM_FMU_DIR (default
+~/.cache/excosim/fmus/) as <Model>-<key12>/<Model>.fmu (FMI 3.0: fmi3/<Model>-<key12>/<Model>.fmu),
+<key12> the build key's first 12 hex digits: source trees that differ never share a file, trees
+that agree share the build. Next to it, content.sha256 holds the FMU's content hash
+(fmus.identity.content_hash: model description, binaries, sources) as built. A cached FMU is used
+only when its GUID is the key's and its content hash is the recorded one; anything else (a binary
+replaced inside the zip, a cut file) is rebuilt. Both files are written to a temporary name and
+renamed into place (atomic). Builds are byte-reproducible: gcc runs in the source folder on
+relative names (no temporary path gets into the binary), the zip entries are written in a fixed
+order with a fixed date and mode. The binary goes under the platform folder fmpy loads it from
+(fmus.toolchain.platform_folder). The cache only grows; removing the folder is always safe.
 """
 
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 import os
-import shutil
-import subprocess
 import tempfile
 import uuid
 import zipfile
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
 from fmus.codegen import model_description, variables_header
 from fmus.codegen3 import model_description_fmi3
 from fmus.identity import UnsafeArchive, content_hash
-from fmus.table import TableError, read_table
+from fmus.packaged import packaged_fmu
+from fmus.table import ModelTable, TableError, read_table
+from fmus.toolchain import (
+    CFLAGS,
+    HEADERS,
+    LIBS,
+    BuildError,
+    FolderError,
+    compile_shared,
+    fmi_headers,
+    gcc,
+    gcc_version,
+    platform_folder,
+)
 
 __all__ = [
-    "BuildError", "MODELS_DIR", "FMI_VERSIONS", "model_names", "fmu_dir", "build", "build_model",
-    "build_all", "cached_content_hashes", "local_content_hashes",
+    "BuildError", "FolderError", "MODELS_DIR", "FMI_VERSIONS", "model_names", "fmu_dir", "build",
+    "build_model", "build_all", "Model", "read_model", "source_key", "build_key", "write_fmu",
+    "cached_content_hashes", "local_content_hashes",
 ]
 
 MODELS_DIR = Path(__file__).resolve().parent
 COMMON_DIR = MODELS_DIR / "common"
 SHARED_DIR = MODELS_DIR / "shared"
-BUILDER_VERSION = "excosim-fmus-2"
+BUILDER_VERSION = "excosim-fmus-3"
 FMI_VERSIONS = (2, 3)
-# The FMI headers (from fmpy's c-code folder) each version compiles against.
-HEADERS = {
-    2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
-    3: ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h"),
-}
 # Shared-layer files that belong to the other FMI version (never compiled into this one).
 _OTHER_LAYER = {2: ("fmi3_",), 3: ("fmi2_", "instance.h")}
+# The modules whose code decides what an FMU is made of.
+_MODULES = ("builder.py", "codegen.py", "codegen3.py", "table.py", "toolchain.py")
 CONTENT_RECORD = "content.sha256"  # next to a cached FMU: its content hash as built
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)  # fixed entry date: the same inputs give the same zip bytes
-CFLAGS = [
-    "-std=c11", "-O2", "-fPIC", "-shared", "-fvisibility=hidden",
-    # Reproducible floating point: no fused multiply-add, no fast-math reassociation.
-    "-ffp-contract=off",
-    "-Wall", "-Wextra", "-Werror", "-Wno-unused-parameter",
-]
-LIBS = ["-lm"]
-
-
-class BuildError(RuntimeError):
-    """An FMU could not be built; the message says why (missing gcc, compile error, bad table).
-    `exit_status`: 2 when the cause is the user's setting (an FMU folder that cannot be made),
-    1 for a failure of the build itself."""
-
-    exit_status = 1
-
-
-class FolderError(BuildError):
-    """The FMU folder ($EXCOSIM_FMU_DIR) cannot be made: the user's setting."""
-
-    exit_status = 2
 
 
 def model_names() -> list[str]:
@@ -88,34 +80,6 @@ def fmu_dir() -> Path:
     """Where built FMUs go: $EXCOSIM_FMU_DIR, else ~/.cache/excosim/fmus."""
     configured = os.environ.get("EXCOSIM_FMU_DIR")
     return Path(configured).expanduser() if configured else Path.home() / ".cache/excosim/fmus"
-
-
-def _fmi_headers(fmi_version: int = 2) -> Path:
-    spec = importlib.util.find_spec("fmpy")
-    if spec is None or spec.origin is None:
-        raise BuildError(f"fmpy is not installed: its FMI {fmi_version}.0 headers (fmpy/c-code) "
-                         "are needed")
-    headers = Path(spec.origin).parent / "c-code"
-    if not all((headers / name).is_file() for name in HEADERS[fmi_version]):
-        raise BuildError(f"fmpy has no FMI {fmi_version}.0 headers at {headers}")
-    return headers
-
-
-def _gcc() -> str:
-    gcc = shutil.which("gcc")
-    if gcc is None:
-        raise BuildError("gcc not found on PATH: install a C compiler (e.g. apt install gcc) "
-                         "to build the FMUs")
-    return gcc
-
-
-@lru_cache(maxsize=4)
-def _gcc_version(gcc: str) -> str:
-    try:
-        result = subprocess.run([gcc, "--version"], capture_output=True, text=True, check=True)
-    except (OSError, subprocess.CalledProcessError) as exc:
-        raise BuildError(f"cannot run {gcc} --version: {exc}") from None
-    return result.stdout
 
 
 def _sources(model_dir: Path, shared: tuple[str, ...] = (),
@@ -144,27 +108,77 @@ def _sources(model_dir: Path, shared: tuple[str, ...] = (),
     return files
 
 
-def _content_hash(table_bytes: bytes, sources: dict[str, bytes], gcc_version: str,
-                  headers: Path, fmi_version: int = 2) -> str:
-    digest = hashlib.sha256()
-
+def _feeder(digest):
     def feed(label: str, data: bytes) -> None:
         digest.update(f"{label}:{len(data)}:".encode())
         digest.update(data)
+    return feed
 
+
+@dataclass(frozen=True)
+class Model:
+    """A model folder read for a build: its table, sources and source key."""
+
+    folder: Path
+    fmi_version: int
+    table: ModelTable
+    sources: dict[str, bytes]
+    source: str  # the source key (module docstring)
+
+    @property
+    def name(self) -> str:
+        return self.folder.name
+
+
+def read_model(model_dir: Path, fmi_version: int = 2) -> Model:
+    """Read a model folder for an FMI `fmi_version` build (no compiler needed). BuildError for
+    an unsupported FMI version, a folder without variables.toml, a bad table or sources."""
+    if fmi_version not in FMI_VERSIONS:
+        raise BuildError(f"FMI version {fmi_version!r} is not supported (use 2 or 3)")
+    model_dir = Path(model_dir)
+    name = model_dir.name
+    if not (model_dir / "variables.toml").is_file():
+        raise BuildError(f"{model_dir} is not a model folder: it has no variables.toml")
+    try:
+        table = _read_table(model_dir / "variables.toml")
+    except TableError as exc:
+        raise BuildError(str(exc)) from None
+    if table.identifier != name:
+        raise BuildError(f"{name}/variables.toml: [model] identifier '{table.identifier}' "
+                         f"must equal the folder name '{name}'")
+    sources = _sources(model_dir, table.shared, fmi_version)
+    digest = hashlib.sha256()
+    feed = _feeder(digest)
     feed("builder", BUILDER_VERSION.encode())
     feed("fmi", str(fmi_version).encode())  # an FMI 3 build never hits an FMI 2 cache entry
-    # The generated code depends on these modules.
-    for module in ("builder.py", "codegen.py", "codegen3.py", "table.py"):
+    feed("platform", platform_folder(fmi_version).encode())
+    for module in _MODULES:  # the generated code depends on these modules
         feed(module, (MODELS_DIR / module).read_bytes())
     feed("flags", " ".join(CFLAGS + LIBS).encode())
-    feed("gcc", gcc_version.encode())
-    feed("variables.toml", table_bytes)
-    for name in sorted(sources):
-        feed(name, sources[name])
-    for name in HEADERS[fmi_version]:
+    feed("variables.toml", (model_dir / "variables.toml").read_bytes())
+    for file_name in sorted(sources):
+        feed(file_name, sources[file_name])
+    return Model(model_dir, fmi_version, table, sources, digest.hexdigest())
+
+
+def source_key(model_dir: Path, fmi_version: int = 2) -> str:
+    """The source key of a model folder (module docstring): no compiler needed."""
+    return read_model(model_dir, fmi_version).source
+
+
+def build_key(model: Model, compiler_version: str, headers: Path) -> str:
+    """The build key: the source key with the compiler's version and the FMI headers."""
+    digest = hashlib.sha256()
+    feed = _feeder(digest)
+    feed("source", model.source.encode())
+    feed("gcc", compiler_version.encode())
+    for name in HEADERS[model.fmi_version]:
         feed(name, (headers / name).read_bytes())
     return digest.hexdigest()
+
+
+def _guid(key: str) -> str:
+    return "{" + str(uuid.UUID(key[:32])) + "}"
 
 
 def _guid_of(fmu: Path) -> str | None:
@@ -180,61 +194,65 @@ def _guid_of(fmu: Path) -> str | None:
     return None
 
 
-def _compile(gcc: str, source_dir: Path, c_files: list[str], headers: Path, output: Path,
-             model: str) -> None:
-    # Relative source names in the source folder: the binary holds no temporary path.
-    command = [gcc, *CFLAGS, "-I", ".", "-I", str(headers), *c_files, "-o", str(output), *LIBS]
-    result = subprocess.run(command, capture_output=True, text=True, cwd=source_dir)
-    if result.returncode != 0:
-        lines = [line for line in result.stderr.splitlines() if line.strip()]
-        errors = [line for line in lines if "error" in line] or lines
-        shown = "\n  ".join(line.replace(str(source_dir) + os.sep, "") for line in errors[:5])
-        raise BuildError(f"{model}: gcc failed to compile the model:\n  {shown}")
+def write_fmu(model: Model, key: str, staging: Path, compiler: str, headers: Path) -> Path:
+    """Compile and zip `model` with build key `key` in the empty folder `staging`; return the
+    FMU's path there (staging/<Model>.fmu). BuildError: a compile error."""
+    name, guid = model.name, _guid(key)
+    source_dir = staging / "sources"
+    source_dir.mkdir()
+    for file_name, data in model.sources.items():
+        (source_dir / file_name).write_bytes(data)
+    (source_dir / "variables.h").write_text(variables_header(model.table, guid), encoding="utf-8")
+    c_files = sorted(n for n in model.sources if n.endswith(".c"))
+    binary = staging / f"{name}.so"
+    compile_shared(compiler, source_dir, c_files, headers, binary, name)
+    tool = f"excosim fmus builder ({BUILDER_VERSION})"
+    description = (model_description(model.table, guid, c_files, tool) if model.fmi_version == 2
+                   else model_description_fmi3(model.table, guid, c_files, tool))
+    fmu = staging / f"{name}.fmu"
+    with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as archive:
+        _add(archive, "modelDescription.xml", description)
+        _add(archive, f"binaries/{platform_folder(model.fmi_version)}/{name}.so",
+             binary.read_bytes())
+        for path in sorted(source_dir.iterdir()):
+            _add(archive, f"sources/{path.name}", path.read_bytes())
+    return fmu
 
 
 def build(name: str, fmi_version: int = 2) -> Path:
-    """Build fmus/<name>/ into <fmu_dir()>/<name>-<key12>/<name>.fmu (FMI 3.0: under fmi3/)
-    unless that FMU is cached and intact (module docstring); return its path.
+    """The FMU of our model fmus/<name>/ (FMI 3.0: `fmi_version=3`): the one built with the
+    package when it was built from these sources, else built (or found cached) like
+    `build_model`; return its path.
 
     Raises BuildError with one clear message for a missing model, a bad variables.toml,
-    a missing gcc or a compile error.
+    a missing gcc (when a build is needed) or a compile error.
     """
     if not (MODELS_DIR / name / "variables.toml").is_file():
         known = ", ".join(model_names()) or "none"
         raise BuildError(f"unknown model '{name}': no {name}/variables.toml under the fmus "
                          f"package (models: {known})")
-    return build_model(MODELS_DIR / name, fmi_version)
+    model = read_model(MODELS_DIR / name, fmi_version)
+    return packaged_fmu(name, fmi_version, model.source) or _cached_build(model)
 
 
 def build_model(model_dir: Path, fmi_version: int = 2) -> Path:
-    """Build any model folder (variables.toml, model.c, ...) like `build`; return the FMU path.
+    """Build any model folder (variables.toml, model.c, ...) into the build cache (module
+    docstring) unless cached and intact; return the FMU path. Needs gcc.
 
     The folder's name is the model identifier; the shared FMI layer comes from fmus/common.
     """
-    if fmi_version not in FMI_VERSIONS:
-        raise BuildError(f"FMI version {fmi_version!r} is not supported (use 2 or 3)")
-    model_dir = Path(model_dir)
-    name = model_dir.name
-    if not (model_dir / "variables.toml").is_file():
-        raise BuildError(f"{model_dir} is not a model folder: it has no variables.toml")
-    try:
-        table = _read_table(model_dir / "variables.toml")
-    except TableError as exc:
-        raise BuildError(str(exc)) from None
-    if table.identifier != name:
-        raise BuildError(f"{name}/variables.toml: [model] identifier '{table.identifier}' "
-                         f"must equal the folder name '{name}'")
-    headers = _fmi_headers(fmi_version)
-    gcc = _gcc()
-    sources = _sources(model_dir, table.shared, fmi_version)
-    content = _content_hash((model_dir / "variables.toml").read_bytes(), sources,
-                            _gcc_version(gcc), headers, fmi_version)
-    guid = "{" + str(uuid.UUID(content[:32])) + "}"
+    return _cached_build(read_model(model_dir, fmi_version))
 
-    out_dir = fmu_dir() if fmi_version == 2 else fmu_dir() / "fmi3"
-    folder = out_dir / f"{name}-{content[:12]}"
+
+def _cached_build(model: Model) -> Path:
+    headers = fmi_headers(model.fmi_version)
+    compiler = gcc()
+    key = build_key(model, gcc_version(compiler), headers)
+    name = model.name
+    out_dir = fmu_dir() if model.fmi_version == 2 else fmu_dir() / "fmi3"
+    folder = out_dir / f"{name}-{key[:12]}"
     target, record = folder / f"{name}.fmu", folder / CONTENT_RECORD
-    if _intact(target, record, guid):
+    if _intact(target, record, _guid(key)):
         return target
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -243,24 +261,7 @@ def build_model(model_dir: Path, fmi_version: int = 2) -> Path:
 
     with tempfile.TemporaryDirectory(prefix=f".{name}-", dir=out_dir) as tmp:
         staging = Path(tmp)
-        source_dir = staging / "sources"
-        source_dir.mkdir()
-        for file_name, data in sources.items():
-            (source_dir / file_name).write_bytes(data)
-        (source_dir / "variables.h").write_text(variables_header(table, guid), encoding="utf-8")
-        c_files = sorted(n for n in sources if n.endswith(".c"))
-        binary = staging / f"{name}.so"
-        _compile(gcc, source_dir, c_files, headers, binary, name)
-        tool = f"excosim fmus builder ({BUILDER_VERSION})"
-        description = (model_description(table, guid, c_files, tool) if fmi_version == 2
-                       else model_description_fmi3(table, guid, c_files, tool))
-        platform = "linux64" if fmi_version == 2 else "x86_64-linux"  # FMI 3 platform tuple
-        partial = staging / f"{name}.fmu"
-        with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
-            _add(archive, "modelDescription.xml", description)
-            _add(archive, f"binaries/{platform}/{name}.so", binary.read_bytes())
-            for path in sorted(source_dir.iterdir()):
-                _add(archive, f"sources/{path.name}", path.read_bytes())
+        partial = write_fmu(model, key, staging, compiler, headers)
         (staging / CONTENT_RECORD).write_text(content_hash(partial) + "\n", encoding="ascii")
         folder.mkdir(exist_ok=True)
         # Atomic, record first: a reader sees the old or the new files, never half of one; a
@@ -320,9 +321,10 @@ def _add(archive: zipfile.ZipFile, name: str, data: bytes) -> None:
 
 
 def local_content_hashes(fmi_version: int = 2) -> dict[str, str]:
-    """content hash -> model name of every FMU built from this tree's sources (built now if
-    needed; BuildError if one cannot be): what `fmus.identity.content_hash` of an FMU that came
-    from elsewhere is compared with to tell our build from native code of unknown origin."""
+    """content hash -> model name of every FMU built from this tree's sources (those built with
+    the package, no compiler needed; built now where the sources were edited, BuildError if one
+    cannot be): what `fmus.identity.content_hash` of an FMU that came from elsewhere is compared
+    with to tell our build from native code of unknown origin."""
     return {content_hash(build(name, fmi_version)): name for name in model_names()}
 
 

@@ -124,8 +124,8 @@ def test_models_lists_every_model_folder():
     assert list(fmus.MODELS) == sorted(p.parent.name for p in MODELS_DIR.glob("*/variables.toml"))
 
 
-def test_build_writes_a_complete_fmu_into_the_configured_folder(out_dir):
-    path = fmus.build("HydraulicCylinder")
+def test_build_writes_a_complete_fmu_into_the_configured_folder(out_dir, cylinder_copy):
+    path = fmus.build_model(cylinder_copy)
     assert path.parent.parent == out_dir and path.name == "HydraulicCylinder.fmu"
     assert path.parent.name.startswith("HydraulicCylinder-") and len(path.parent.name) == 30
     names = zipfile.ZipFile(path).namelist()
@@ -189,12 +189,13 @@ def test_bad_table_gives_one_clear_message(out_dir, cylinder_copy, edit, expecte
     assert "variables.toml" in str(error.value)
 
 
-def test_unknown_model_and_missing_gcc_are_clear_errors(out_dir, monkeypatch, tmp_path):
+def test_unknown_model_and_missing_gcc_are_clear_errors(out_dir, monkeypatch, tmp_path,
+                                                        cylinder_copy):
     with pytest.raises(fmus.BuildError, match="unknown model 'Crane'"):
         fmus.build("Crane")
     monkeypatch.setenv("PATH", str(tmp_path))  # a folder without gcc
     with pytest.raises(fmus.BuildError, match="gcc not found"):
-        fmus.build("HydraulicCylinder")
+        fmus.build_model(cylinder_copy)
 
 
 def test_command_line_reports_failures_without_traceback(out_dir, monkeypatch, capsys):

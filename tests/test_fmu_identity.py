@@ -46,11 +46,13 @@ def _rezip(entries, target: Path, *, reverse: bool = False, date=(2024, 5, 6, 7,
 
 
 def test_builds_are_byte_reproducible_across_cache_folders(tmp_path, monkeypatch):
+    """Two cache folders, and the package's build (fmus/_built, compiled by pip): one FMU."""
     built = []
     for folder in ("one", "two"):
         monkeypatch.setenv("EXCOSIM_FMU_DIR", str(tmp_path / folder))
-        built.append(fmus.build("Pile"))
+        built.append(fmus.build_model(MODELS_DIR / "Pile"))
     assert built[0] != built[1] and built[0].read_bytes() == built[1].read_bytes()
+    assert fmus.build("Pile").read_bytes() == built[0].read_bytes()
     infos = [info for info, _ in _entries(built[0])]
     assert [i.date_time for i in infos] == [(1980, 1, 1, 0, 0, 0)] * len(infos)
     names = [i.filename for i in infos]
@@ -59,7 +61,7 @@ def test_builds_are_byte_reproducible_across_cache_folders(tmp_path, monkeypatch
 
 
 def test_content_hash_is_the_model_not_the_zip(out_dir, tmp_path):
-    path = fmus.build("HydraulicCylinder")
+    path = fmus.build_model(MODELS_DIR / "HydraulicCylinder")
     entries = _entries(path)
     again = _rezip(entries, tmp_path / "again.fmu", reverse=True,
                    extra={"documentation/notes.txt": b"same model\n"})
@@ -88,7 +90,7 @@ def test_two_source_trees_keep_their_own_cache_files(out_dir, tmp_path):
 
 
 def test_a_binary_replaced_inside_a_cached_fmu_is_rebuilt(out_dir, tmp_path):
-    path = fmus.build("HydraulicCylinder")
+    path = fmus.build_model(MODELS_DIR / "HydraulicCylinder")
     good = path.read_bytes()
     entries = _entries(path)
     so = "binaries/linux64/HydraulicCylinder.so"
@@ -97,11 +99,12 @@ def test_a_binary_replaced_inside_a_cached_fmu_is_rebuilt(out_dir, tmp_path):
     _rezip(entries, tmp_path / "tampered.fmu", replace={so: bytes(binary)},
            date=(1980, 1, 1, 0, 0, 0), compression=zipfile.ZIP_DEFLATED)
     shutil.copyfile(tmp_path / "tampered.fmu", path)  # the same GUID in its description
-    assert fmus.build("HydraulicCylinder") == path and path.read_bytes() == good
+    assert fmus.build_model(MODELS_DIR / "HydraulicCylinder") == path
+    assert path.read_bytes() == good
 
     (path.parent / "content.sha256").write_text("0" * 64 + "\n")  # a record that disagrees
     stamp = path.stat().st_mtime_ns
-    assert fmus.build("HydraulicCylinder").read_bytes() == good
+    assert fmus.build_model(MODELS_DIR / "HydraulicCylinder").read_bytes() == good
     assert path.stat().st_mtime_ns != stamp  # rebuilt
     assert (path.parent / "content.sha256").read_text().strip() == content_hash(path)
 

@@ -103,17 +103,20 @@ def test_a_linear_servo_runs_in_the_one_loop():
     assert ideal.termination == "periods", ideal.message
 
 
-def test_the_library_builds_byte_reproducibly(tmp_path, monkeypatch):
-    from fmus.shared_library import build_library
+def test_the_library_builds_byte_reproducibly(tmp_path):
+    """Built twice into other folders: the bytes of the library built with the package."""
+    from fmus import packaged
+    from fmus.shared_library import compile_library, library_sources
+    from fmus.toolchain import gcc
 
-    source = ROOT / "orchestrator" / "plants" / "native"
+    source_dir, c_files = library_sources("coupling")
     digests = []
     for folder in ("a", "b"):
-        monkeypatch.setenv("EXCOSIM_FMU_DIR", str(tmp_path / folder))
-        path = build_library("coupling", source, ("coupling.c",))
-        assert path.is_relative_to(tmp_path / folder)
-        digests.append(hashlib.sha256(path.read_bytes()).hexdigest())
-    assert digests[0] == digests[1]
+        (tmp_path / folder).mkdir()
+        compile_library("coupling", source_dir, c_files, tmp_path / folder / "c.so", gcc())
+        digests.append(hashlib.sha256((tmp_path / folder / "c.so").read_bytes()).hexdigest())
+    built = packaged.library_target(packaged.BUILT_DIR, "coupling")
+    assert digests[0] == digests[1] == packaged.file_sha256(built)
 
 
 def test_the_c_coupling_refuses_references_it_would_read_past():

@@ -178,14 +178,23 @@ def test_an_fmu_without_a_binary_for_this_platform_is_refused_at_load(tmp_path):
 
 
 def test_an_fmu_folder_that_cannot_be_made_is_the_users_mistake(tmp_path):
-    """$EXCOSIM_FMU_DIR naming a file: `fmus build` exits 2 as `run` does, one line."""
+    """$EXCOSIM_FMU_DIR naming a file, where a build is needed (a user's edit of the C sources,
+    here in a copy of the fmus package): `fmus build` exits 2 as `run` does, one line."""
     import os
+    import shutil
 
+    tree = tmp_path / "tree"
+    shutil.copytree(ROOT / "fmus", tree / "fmus",
+                    ignore=shutil.ignore_patterns("_built", "__pycache__"))
+    with open(tree / "fmus" / "IdealActuator" / "model.c", "a") as source:
+        source.write("/* the user's edit */\n")
     blocker = tmp_path / "a-file"
     blocker.write_text("not a folder")
-    env = {**os.environ, "EXCOSIM_FMU_DIR": str(blocker)}
+    env = {**os.environ, "EXCOSIM_FMU_DIR": str(blocker),
+           "PYTHONPATH": os.pathsep.join([str(tree), str(ROOT)])}
     done = subprocess.run([sys.executable, "-m", "orchestrator.cli.app", "fmus", "build",
-                           "IdealActuator"], capture_output=True, text=True, timeout=120, env=env)
+                           "IdealActuator"], capture_output=True, text=True, timeout=120, env=env,
+                          cwd=tmp_path)
     assert done.returncode == 2 and done.stderr.startswith("excosim: cannot create the FMU "
                                                            "folder")
     assert len(done.stderr.strip().splitlines()) == 1

@@ -3,16 +3,16 @@
 (FastSlave.run); rollback.c: an FMU's state saved and restored in one call each
 (FastSlave.rollback, for a master that iterates a step).
 
-`library()` builds them on first use (fmus.shared_library: the FMUs' gcc and flags, cached
-beside them) and returns the loaded library, or None when it cannot be had (no gcc): FastSlave
-then makes the three FMI calls one by one.
+`library()` loads them as built with the package (fmus.shared_library; built with the FMUs'
+gcc and flags after an edit of their sources) and returns the loaded library, or None when it
+cannot be had (sources edited on a machine without gcc): FastSlave then makes the three FMI
+calls one by one.
 """
 
 from __future__ import annotations
 
 import ctypes
 from functools import lru_cache
-from pathlib import Path
 
 
 class StepCall(ctypes.Structure):
@@ -38,12 +38,10 @@ class Rollback(ctypes.Structure):
 def library() -> ctypes.CDLL | None:
     """The loaded library (fmi2_step, fmi3_step), None without a C compiler."""
     from fmus.builder import BuildError
-    from fmus.shared_library import build_library
+    from fmus.shared_library import build_library, library_sources
 
     try:
-        path = build_library("fast_step", Path(__file__).resolve().parent,
-                             ("fmi2_step.c", "fmi3_step.c", "steps.c",
-                                                  "rollback.c"))
+        path = build_library("fast_step", *library_sources("fast_step"))
     except BuildError:
         return None
     loaded = ctypes.CDLL(str(path))

@@ -1,12 +1,14 @@
 """The --trust rule of the commands that run a scenario's FMUs (`run`, `scenario show`,
 `emulate`), the same as `replay`'s (docs/reliability.md).
 
-An FMU is native code that runs inside this process. Our models, named by name, are built here from
-this tree's sources and always run. An FMU file a scenario names runs without --trust only when its
-content (fmus.identity.content_hash) is that of one of our builds, FMI 2.0 or 3.0 (a copy of our
-FMU, say), or of an FMU this machine built from earlier sources and its build cache still holds
+An FMU is native code that runs inside this process. Our models, named by name, always run: the
+FMUs built with the package from this tree's sources (fmus.packaged; built here with gcc where
+the sources were edited). An FMU file a scenario names runs without --trust only when its content
+(fmus.identity.content_hash) is that of one of our builds, FMI 2.0 or 3.0 (a copy of our FMU,
+say), or of an FMU this machine built from earlier sources and its build cache still holds
 (fmus.cached_content_hashes); any other file is refused with its sha256, and with --trust it runs
 and the command says so on stderr, with the file's full sha256 (which the run log records too).
+Comparing needs no compiler while the sources are the package's (fmus.local_content_hashes).
 """
 
 from __future__ import annotations
@@ -32,7 +34,8 @@ class ForeignFmu:
 
 def foreign_fmus(scenario: Any) -> list[ForeignFmu]:
     """The scenario's FMU files that are not our builds, in role order. Raises UnsafeArchive
-    for a file that is not a safe archive, BuildError when our FMUs cannot be built."""
+    for a file that is not a safe archive, BuildError when our FMUs cannot be had (sources
+    edited on a machine without gcc)."""
     import fmus
     from fmus.identity import content_hash
 
