@@ -16,7 +16,7 @@ from faulty_fmus import HANG, patched_cylinder
 
 import fmus
 from fmus.runs import FastSlave
-from orchestrator.campaign.watchdog import StepWatchdog, stuck_step
+from orchestrator.campaign.watchdog import SameCall, StepWatchdog, stuck_step
 from orchestrator.runlog import read_run
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -52,12 +52,24 @@ def test_a_step_that_never_returns_ends_the_run_with_the_fmu_named(tmp_path, han
     assert list(temporary.iterdir()) == []  # the extracted FMUs are removed
 
 
+def test_the_judgement_reports_one_call_seen_for_the_timeout_and_nothing_else():
+    """SameCall on a fake clock: steps that keep returning (a new key at every poll) are never
+    stuck, however long; one key seen for the timeout is; no FMU call (None) never is."""
+    calls = SameCall(2.0)
+    assert not any(calls.stuck(("boom", 0.01 * i), 10.0 * i) for i in range(100))
+    assert not any(calls.stuck(None, 1000.0 + i) for i in range(10))
+    assert [calls.stuck(("boom", 5.0), t) for t in (2000.0, 2001.0, 2001.99, 2002.0)] == \
+        [False, False, False, True]
+
+
 def test_steps_that_keep_returning_are_never_reported():
     """A busy step loop is sampled inside FastSlave.step again and again, at other times t:
-    the watchdog stays quiet (and a frame that is no step is none)."""
+    the watchdog stays quiet (and a frame that is no step is none). The timeout is far above
+    the 10 ms poll and the 1 s loop, so a descheduled main thread cannot look stuck (the fake
+    clock test above tries the judgement itself at its edge)."""
     reports: list[str] = []
     with FastSlave(fmus.build("HydraulicCylinder"), ["u"], ["x"], instance_name="stick") as ok:
-        with StepWatchdog(0.2, reports.append, poll_s=0.01):
+        with StepWatchdog(5.0, reports.append, poll_s=0.01):
             deadline, t = time.monotonic() + 1.0, 0.0
             while time.monotonic() < deadline:
                 ok.step(t, 1e-3, np.array([0.1]))

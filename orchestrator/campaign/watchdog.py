@@ -92,15 +92,28 @@ class StepWatchdog:
         self._stop.set()
 
     def _watch(self) -> None:
-        seen, since = None, 0.0
+        calls = SameCall(self.timeout_s)
         while not self._stop.wait(self.poll_s):
             call = stuck_call(sys._current_frames().get(self._main))
-            key = None if call is None else call[0]
-            now = time.monotonic()
-            if key is None or key != seen:
-                seen, since = key, now
-                continue
-            if now - since >= self.timeout_s and not self._stop.is_set():
+            if calls.stuck(None if call is None else call[0], time.monotonic()) \
+                    and not self._stop.is_set():
                 self._on_hang(f"FMU {call[1]} did not return from {call[2]} within "
                               f"{self.timeout_s:g} s")
                 return
+
+
+class SameCall:
+    """The watchdog's judgement, apart from its thread and clock: fed the key of the call the
+    main thread is in at each poll (None: no FMU call) and the time (s), says when one key has
+    been seen for timeout_s."""
+
+    def __init__(self, timeout_s: float) -> None:
+        self.timeout_s = timeout_s
+        self._seen, self._since = None, 0.0
+
+    def stuck(self, key, now_s: float) -> bool:
+        """Whether `key`, seen now, has been the main thread's call for timeout_s."""
+        if key is None or key != self._seen:
+            self._seen, self._since = key, now_s
+            return False
+        return now_s - self._since >= self.timeout_s
