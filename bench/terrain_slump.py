@@ -4,11 +4,12 @@
 
 Runs scenarios/paper-2020.toml with adaptation.strategy = "terrain" (told 40.4 deg, no log) K
 periods (default 20), once with the strategy's slump kernel in C
-(orchestrator.campaign.native_slump) and once with planner.surface_estimate.relax_steps in
-numpy, alternately N times (default 2) so that a shared machine's drift hits both; prints each
-kernel's median wall time, the share of it spent slumping, the ratio, and whether both gave the
-same masses and deepest points (they must: the same arithmetic in the same order). Pinned to
-one CPU; BLAS on one thread.
+(orchestrator.campaign.native_slump) and once with the numpy oracle of the tests
+(tests/slump_reference.py, the planner's kernel before the C one), alternately N times
+(default 2) so that a shared machine's drift hits both; prints each kernel's median wall time,
+the share of it spent slumping, the ratio, and whether both gave the same masses and deepest
+points (they must: the same arithmetic in the same order). Pinned to one CPU; BLAS on one
+thread.
 """
 
 from __future__ import annotations
@@ -23,12 +24,14 @@ from pathlib import Path
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+from slump_reference import relax_steps  # noqa: E402
 
 import orchestrator.campaign.native_slump as native_slump  # noqa: E402
 import orchestrator.campaign.strategy as strategy  # noqa: E402
 from orchestrator.campaign import run_campaign  # noqa: E402
 from orchestrator.scenario import load_scenario  # noqa: E402
-from planner.surface_estimate import relax_steps  # noqa: E402
 
 PAPER = Path(__file__).resolve().parents[1] / "scenarios" / "paper-2020.toml"
 
@@ -60,8 +63,6 @@ def main() -> None:
     parser.add_argument("--periods", type=int, default=20)
     args = parser.parse_args()
     c_kernel = native_slump.native_relax()
-    if c_kernel is None:
-        raise SystemExit(f"the C kernel is unavailable: {native_slump.unavailable()}")
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
     runs: dict[str, list[tuple[float, float]]] = {"C": [], "numpy": []}

@@ -42,10 +42,10 @@ class Hypothesis:
 class ReposeBank:
     """Hypotheses at the angles `repose_angles_rad` ((n,) rad in (0, pi/2)), all starting from
     `surface`; prior weights normal around assumed_rad with sigma prior_sigma_rad (rad). relax:
-    the slump kernel (SurfaceEstimate.slumped; None: the numpy one)."""
+    the slump kernel (SurfaceEstimate.slumped)."""
 
     def __init__(self, surface: SurfaceEstimate, repose_angles_rad: np.ndarray,
-                 assumed_rad: float, prior_sigma_rad: float, relax: Relax | None = None) -> None:
+                 assumed_rad: float, prior_sigma_rad: float, relax: Relax) -> None:
         self.relax = relax
         angles = np.asarray(repose_angles_rad, dtype=float)
         if angles.ndim != 1 or len(angles) == 0 or not np.all((angles > 0.0)

@@ -11,11 +11,15 @@ that path is predicted to cut.
 
 Units: m throughout; the surface z(y) is sampled at cell centres `y_m` (n,) of width `cell_m`.
 
+The slump needs a kernel (`Relax`) that the caller hands in: the planner builds no native
+code, and the one kernel is C (planner/native/slump.c, loaded by
+orchestrator.campaign.native_slump; tests/slump_reference.py is the numpy oracle of the tests).
+
 >>> surface = SurfaceEstimate.flat(-3.0, 0.0, cells=60, height_m=0.0)
 >>> tip_y, tip_z = np.array([-2.49, -1.51]), np.array([-0.2, -0.2])  # 20 cells, 0.2 m deep
 >>> round(surface.swept_area(tip_y, tip_z), 9)
 0.2
->>> cut = surface.cut(tip_y, tip_z).slumped(math.radians(45.0))
+>>> cut = surface.cut(tip_y, tip_z)
 >>> round(float(cut.z_m.sum() * cut.cell_m), 9)        # the cut's 0.2 m^2 is gone, no more
 -0.2
 """
@@ -94,40 +98,19 @@ class SurfaceEstimate:
         """The surface lowered to an `envelope` (n,) m wherever it runs below it."""
         return SurfaceEstimate(self.y_m, np.minimum(self.z_m, lowest_m))
 
-    def slumped(self, repose_angle_rad: float, relax: Relax | None = None) -> SurfaceEstimate:
+    def slumped(self, repose_angle_rad: float, relax: Relax) -> SurfaceEstimate:
         """The surface after its walls slumped to repose_angle_rad (rad, in (0, pi/2)).
 
-        relax: the kernel that levels the steps (`relax_steps`, the default, or a compiled one
-        that gives the same bits: orchestrator.campaign.native_slump)."""
+        relax: the kernel that levels the steps (`Relax`)."""
         if not 0.0 < repose_angle_rad < 0.5 * math.pi:
             raise ValueError(f"repose_angle_rad must lie in (0, pi/2), got {repose_angle_rad!r}")
         z = self.z_m.copy()
-        (relax_steps if relax is None else relax)(z, self.cell_m * math.tan(repose_angle_rad))
+        relax(z, self.cell_m * math.tan(repose_angle_rad))
         return SurfaceEstimate(self.y_m, z)
 
 
 Relax = Callable[[np.ndarray, float], None]
-"""A slump kernel: relax(z_m, allowed_m) levels the heights z_m (n,) m in place until no step
-between neighbours exceeds allowed_m (m) by more than RELAX_TOLERANCE_M (`relax_steps`)."""
-
-
-def relax_steps(z_m: np.ndarray, allowed_m: float) -> None:
-    """Conservative transfers between neighbours of z_m (n,) m, in place: half-sweeps over the
-    even, then the odd pairs (each set of pairs is disjoint, so every transfer levels its pair
-    to the allowed step exactly), until no step exceeds allowed_m (m) by more than
-    RELAX_TOLERANCE_M, or RELAX_MAX_SWEEPS."""
-    z = z_m
-    for _ in range(RELAX_MAX_SWEEPS):
-        worst = 0.0
-        for first in (0, 1):
-            left, right = z[first:-1:2], z[first + 1::2]
-            n = min(len(left), len(right))
-            left, right = left[:n], right[:n]
-            step = left - right
-            excess = np.abs(step) - allowed_m
-            move = np.where(excess > 0.0, 0.5 * excess * np.sign(step), 0.0)
-            z[first:first + 2 * n:2] -= move
-            z[first + 1:first + 1 + 2 * n:2] += move
-            worst = max(worst, float(excess.max(initial=0.0)))
-        if worst <= RELAX_TOLERANCE_M:
-            break
+"""A slump kernel: relax(z_m, allowed_m) levels the heights z_m (n,) m in place, by conservative
+transfers between neighbours: half-sweeps over the even, then the odd pairs (each set of pairs
+is disjoint, so every transfer levels its pair to the allowed step exactly), until no step
+exceeds allowed_m (m) by more than RELAX_TOLERANCE_M, or RELAX_MAX_SWEEPS."""

@@ -112,13 +112,11 @@ class TerrainAdaptation:
     planner: plans (and checks the reach of) the period through a D (its geometry and path
     shape give the forward kinematics and the nominal surface). defaults: D0, dy_0 (dz_0 is
     not used: the depth comes from the prediction). target_mass_kg: m* (kg, > 0). relax: the
-    slump kernel (planner.surface_estimate.Relax; None: the numpy one; a compiled one gives
-    the same bits and decisions, several times faster).
+    slump kernel (planner.surface_estimate.Relax: the C one, orchestrator.campaign.native_slump).
     """
 
     def __init__(self, planner: PeriodPlanner, defaults: AdaptationDefaults,
-                 target_mass_kg: float, settings: TerrainSettings,
-                 relax: Relax | None = None) -> None:
+                 target_mass_kg: float, settings: TerrainSettings, relax: Relax) -> None:
         if not (math.isfinite(target_mass_kg) and target_mass_kg > 0.0):
             raise ValueError(f"target_mass_kg must be a finite mass > 0 kg, got "
                              f"{target_mass_kg!r}")

@@ -1,6 +1,7 @@
 """The terrain strategy's C slump kernel (orchestrator.campaign.native_slump) against the numpy
-one it replaces (planner.surface_estimate.relax_steps): the same bits on any surface, the same
-campaign, mass kept and every step within the repose, and the fallback when it cannot be built."""
+oracle (tests/slump_reference.py): the same bits on any surface, the same campaign, mass kept
+and every step within the repose; the library comes with the package (no gcc needed), builds
+byte-reproducibly, and one that cannot be had is a clear error."""
 
 from __future__ import annotations
 
@@ -12,17 +13,21 @@ import numpy as np
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
+from slump_reference import relax_steps
 
 import orchestrator.campaign.native_slump as native_slump
 import orchestrator.campaign.strategy as strategy
+from fmus import packaged
+from fmus.builder import BuildError
+from fmus.shared_library import compile_library, library_sources
+from fmus.toolchain import gcc
 from orchestrator.campaign import run_campaign
 from orchestrator.scenario import load_scenario
-from planner.surface_estimate import RELAX_TOLERANCE_M, relax_steps
+from planner.surface_estimate import RELAX_TOLERANCE_M
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "scenarios" / "paper-2020.toml"
 C_RELAX = native_slump.native_relax()
-needs_gcc = pytest.mark.skipif(C_RELAX is None, reason=str(native_slump.unavailable()))
 
 
 @st.composite
@@ -44,7 +49,6 @@ def surfaces(draw):
 TRENCH = np.where((np.arange(240) >= 60) & (np.arange(240) < 80), -0.5, 0.0)  # 1 m x 0.5 m
 
 
-@needs_gcc
 @settings(max_examples=80, deadline=None)
 @given(surfaces())
 @example((TRENCH, 0.05 * math.tan(math.radians(40.4))))
@@ -69,7 +73,6 @@ def terrain_campaign(monkeypatch, relax_factory) -> list[dict]:
     return result.records
 
 
-@needs_gcc
 def test_a_terrain_campaign_decides_the_same_with_either_kernel(monkeypatch):
     calls = []
 
@@ -82,7 +85,7 @@ def test_a_terrain_campaign_decides_the_same_with_either_kernel(monkeypatch):
         return relax
 
     with_c = terrain_campaign(monkeypatch, counting)
-    with_numpy = terrain_campaign(monkeypatch, lambda: None)
+    with_numpy = terrain_campaign(monkeypatch, lambda: relax_steps)
     assert calls  # the C kernel did the slumping
     for a, b in zip(with_c, with_numpy, strict=True):
         keys = ("deepest_point_m", "mass_kg", "predicted_mass_kg", "mass_per_area_kg_m2")
@@ -90,24 +93,36 @@ def test_a_terrain_campaign_decides_the_same_with_either_kernel(monkeypatch):
     assert with_c[-1].get("predicted_mass_kg") is not None
 
 
-def test_without_the_library_the_strategy_keeps_the_numpy_kernel(monkeypatch):
-    from fmus.builder import BuildError
+def test_the_kernel_comes_with_the_package_and_needs_no_gcc(monkeypatch, tmp_path):
+    monkeypatch.setenv("PATH", str(tmp_path))  # a folder without gcc
+    monkeypatch.setenv("EXCOSIM_FMU_DIR", str(tmp_path / "empty-cache"))
+    native_slump._library.cache_clear()
+    try:
+        z = TRENCH.copy()
+        native_slump.native_relax()(z, 0.05)
+        assert np.abs(np.diff(z)).max() <= 0.05 + RELAX_TOLERANCE_M
+        assert native_slump._library()._name == str(packaged.library_target(packaged.BUILT_DIR,
+                                                                             "slump"))
+    finally:
+        native_slump._library.cache_clear()
+    assert not (tmp_path / "empty-cache").exists()
 
+
+def test_a_library_that_cannot_be_had_is_a_clear_error(monkeypatch):
+    """slump.c edited on a machine without gcc, say: the strategy cannot be made (no numpy
+    kernel to fall back on), with the builder's message."""
     def no_gcc(*args, **kwargs):
-        raise BuildError("gcc not found on PATH\nsecond line")
+        raise BuildError("gcc not found on PATH: install a C compiler")
 
     native_slump._library.cache_clear()
     monkeypatch.setattr("fmus.shared_library.build_library", no_gcc)
     try:
-        assert native_slump.unavailable() == "gcc not found on PATH"
-        assert native_slump.native_relax() is None
-        records = terrain_campaign(monkeypatch, native_slump.native_relax)
-        assert len(records) == 5
+        with pytest.raises(BuildError, match="gcc not found"):
+            native_slump.native_relax()
     finally:
         native_slump._library.cache_clear()
 
 
-@needs_gcc
 def test_the_kernel_refuses_an_array_it_would_misread():
     with pytest.raises(ValueError, match="contiguous"):
         C_RELAX(np.zeros(10)[::2], 0.01)
@@ -115,14 +130,13 @@ def test_the_kernel_refuses_an_array_it_would_misread():
         C_RELAX(np.zeros(10, dtype=np.float32), 0.01)
 
 
-@needs_gcc
-def test_the_library_builds_byte_reproducibly(tmp_path, monkeypatch):
-    from fmus.shared_library import build_library
-
+def test_the_library_builds_byte_reproducibly(tmp_path):
+    """Built twice into other folders: the bytes of the library built with the package."""
+    source_dir, c_files = library_sources("slump")
     digests = []
     for folder in ("a", "b"):
-        monkeypatch.setenv("EXCOSIM_FMU_DIR", str(tmp_path / folder))
-        path = build_library("slump", native_slump.SOURCE_DIR, ("slump.c",))
-        assert path.is_relative_to(tmp_path / folder)
-        digests.append(hashlib.sha256(path.read_bytes()).hexdigest())
-    assert digests[0] == digests[1]
+        (tmp_path / folder).mkdir()
+        compile_library("slump", source_dir, c_files, tmp_path / folder / "slump.so", gcc())
+        digests.append(hashlib.sha256((tmp_path / folder / "slump.so").read_bytes()).hexdigest())
+    packaged_library = packaged.library_target(packaged.BUILT_DIR, "slump")
+    assert digests[0] == digests[1] == packaged.file_sha256(packaged_library)

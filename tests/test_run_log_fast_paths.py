@@ -1,10 +1,10 @@
-"""orchestrator.runlog's fast encoders against the straightforward ones they replaced
-(tests/run_log_reference.py), byte for byte: chunk records and message indexes for batches of
-any field layout, single messages and grouped payloads added in any time order; /tf messages
-for any joints and times; the sample channels of any set of signals; package versions."""
+"""orchestrator.runlog's encoders (rows.c, orchestrator.runlog.native) against the
+straightforward ones they replaced (tests/run_log_reference.py, the oracle), byte for byte:
+chunk records and message indexes for batches of any field layout and single messages added in
+any time order; /tf records for any joints and times among other messages; the sample channels
+of any set of signals; package versions."""
 
 from importlib import metadata
-from unittest import mock
 
 import numpy as np
 from hypothesis import given, settings
@@ -14,15 +14,10 @@ from run_log_reference import DoubleBatch as ReferenceBatch
 from run_log_reference import encode_frame_transforms as reference_transforms
 from run_log_reference import sample_channels as reference_channels
 
-from orchestrator.runlog import native
 from orchestrator.runlog.chunk import BufferPool, ChunkBuilder, DoubleBatch
 from orchestrator.runlog.metadata import _PACKAGES, package_versions
 from orchestrator.runlog.samples import CheckedPeriod, double_tag, sample_channels
-from orchestrator.runlog.scene import (
-    encode_frame_transforms,
-    link_transforms,
-    transform_records,
-)
+from orchestrator.runlog.scene import link_transforms, transform_records
 from plant_models import presets
 
 PREFIXES = st.sampled_from([double_tag(1), double_tag(7), double_tag(16), double_tag(33),
@@ -31,12 +26,11 @@ PREFIXES = st.sampled_from([double_tag(1), double_tag(7), double_tag(16), double
 
 @st.composite
 def chunk_content(draw):
-    """A list of additions: ("batches", [(prefixes, seed)], times), ("message", time, size),
-    ("grouped", times, widths)."""
+    """A list of additions: ("batches", [(prefixes, seed)], times), ("message", time, size)."""
     rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
     additions = []
     for _ in range(draw(st.integers(1, 5))):
-        kind = draw(st.sampled_from(["batches", "message", "grouped"]))
+        kind = draw(st.sampled_from(["batches", "message"]))
         n = draw(st.integers(1, 30))
         times = np.sort(rng.integers(0, 20, n)).astype(np.uint64) if draw(st.booleans()) \
             else rng.integers(0, 20, n).astype(np.uint64)
@@ -49,12 +43,8 @@ def chunk_content(draw):
             for _, values in batches if shared is not None else ():
                 values[:, 0] = shared
             additions.append((kind, (batches, shared), times))
-        elif kind == "message":
-            additions.append((kind, int(times[0]), rng.bytes(int(rng.integers(0, 50)))))
         else:
-            # equal times get equal sizes, as timestamps' varints do
-            widths = (times % 3 + 1).astype(int)
-            additions.append((kind, times, widths))
+            additions.append((kind, int(times[0]), rng.bytes(int(rng.integers(0, 50)))))
     return additions
 
 
@@ -72,81 +62,51 @@ def build(builder, additions):
                                else DoubleBatch(channel, 3 * channel, prefixes, columns))
                 channel += 1
             builder.add_batches(batches, extra)
-        elif kind == "message":
-            builder.add_message(channel, channel, content, extra)
         else:
-            times, widths = content, extra
-            groups = [(np.flatnonzero(widths == w),
-                       np.full((int(np.sum(widths == w)), w), w, dtype=np.uint8))
-                      for w in np.unique(widths)]
-            builder.add_grouped(channel, 5, times, groups)
+            builder.add_message(channel, channel, content, extra)
     return builder
 
 
 @settings(max_examples=200, deadline=None)
-@given(chunk_content(), st.booleans())
-def test_records_and_indexes_equal_the_reference_builder(additions, in_c):
-    """Rows filled by rows.c and by numpy (no C library), records asked for before or after
-    the message indexes (the writer thread asks after)."""
+@given(chunk_content())
+def test_records_and_indexes_equal_the_reference_builder(additions):
+    """Records asked for before or after the message indexes (the writer thread asks after)."""
     reference = build(ReferenceBuilder(), additions)
     pool = BufferPool()
     # without a pool, then twice from one pool: the second chunk reuses the first's buffers
     for index, chunk_pool in enumerate((None, pool, pool)):
         fast = build(ChunkBuilder(chunk_pool), additions)
-        with mock.patch.object(native, "library", native.library if in_c else lambda: None):
-            if index == 1:
-                assert fast.message_indexes() == reference.message_indexes()
-            assert bytes(fast.records()) == reference.records()
+        if index == 1:
+            assert fast.message_indexes() == reference.message_indexes()
+        assert bytes(fast.records()) == reference.records()
         assert fast.message_indexes() == reference.message_indexes()
         assert (fast.start_time, fast.end_time, fast.size, dict(fast.counts)) == (
             reference.start_time, reference.end_time, reference.size, dict(reference.counts))
         fast.release()
 
 
-def test_the_rows_library_is_built_where_the_fmus_are():
-    """The C fill serves wherever gcc builds the FMUs (otherwise the test above would compare
-    the numpy fill twice)."""
-    assert native.library() is not None
-
-
-@settings(max_examples=100, deadline=None)
-@given(st.integers(0, 2**32 - 1), st.integers(1, 60),
-       st.sampled_from([0, 10**9 - 5 * 10**6, 127 * 10**9, 10**13]))
-def test_frame_transforms_equal_the_reference_encoding(seed, n, start_ns):
-    rng = np.random.default_rng(seed)
-    # times across varint sizes: nanoseconds of 1 to 5 bytes, seconds of 1 or more
-    times = (start_ns + np.sort(rng.integers(0, 3 * 10**9, n))).astype(np.uint64)
-    transforms = link_transforms(presets.get("paper"), rng.uniform(-3, 3, (n, 3)))
-    fast = encode_frame_transforms(transforms, times)
-    reference = reference_transforms(transforms, times)
-    assert len(fast) == len(reference)
-    for (index, payload), (ref_index, ref_payload) in zip(fast, reference, strict=True):
-        assert np.array_equal(index, ref_index)
-        assert payload.tobytes() == ref_payload.tobytes()
-
-
-
 @settings(max_examples=100, deadline=None)
 @given(st.integers(0, 2**32 - 1), st.integers(1, 60),
        st.sampled_from([0, 10**9 - 5 * 10**6, 127 * 10**9, 10**13]), st.booleans())
-def test_transform_records_in_c_equal_the_numpy_encoding(seed, n, start_ns, ties):
+def test_transform_records_equal_the_reference_encoding(seed, n, start_ns, ties):
     """/tf records from rows.c (scene.transform_records, written when the records are made,
-    among other messages) against encode_frame_transforms's payloads through add_grouped."""
+    among other messages) against the reference's payloads through its add_grouped; times
+    across varint sizes (nanoseconds of 1 to 5 bytes, seconds of 1 or more), ties in order."""
     rng = np.random.default_rng(seed)
     times = (start_ns + np.sort(rng.integers(0, 3 * 10**9, n))).astype(np.uint64)
     if ties:
         times[n // 2:] = times[n // 2]  # equal times keep sample order
     transforms = link_transforms(presets.get("paper"), rng.uniform(-3, 3, (n, 3)))
-    numpy_chunk, c_chunk = ChunkBuilder(), ChunkBuilder()
-    for chunk in (numpy_chunk, c_chunk):
-        chunk.add_message(1, 0, int(times[0]), b"before")
-    numpy_chunk.add_grouped(4, 17, times, encode_frame_transforms(transforms, times))
+    reference, chunk = ReferenceBuilder(), ChunkBuilder()
+    for builder in (reference, chunk):
+        builder.add_message(1, 0, int(times[0]), b"before")
+    reference.add_grouped(4, 17, times, reference_transforms(transforms, times))
     for index, width, rows in transform_records(transforms, times, 4, 17):
-        c_chunk.add_rows(4, times[index], width, rows)
-    for chunk in (numpy_chunk, c_chunk):
-        chunk.add_message(2, 0, int(times[-1]), b"after")
-    assert c_chunk.message_indexes() == numpy_chunk.message_indexes()
-    assert bytes(c_chunk.records()) == bytes(numpy_chunk.records())
+        chunk.add_rows(4, times[index], width, rows)
+    for builder in (reference, chunk):
+        builder.add_message(2, 0, int(times[-1]), b"after")
+    assert chunk.message_indexes() == reference.message_indexes()
+    assert bytes(chunk.records()) == reference.records()
 
 
 SIGNALS = ["boom.x", "boom.v", "boom.p_A", "boom.u", "stick.F", "bucket.x", "pile.bucket_mass",

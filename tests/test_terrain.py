@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from orchestrator.campaign import run_campaign
+from orchestrator.campaign.native_slump import native_relax
 from orchestrator.plants.simulated_excavator import SimulatedExcavator
 from orchestrator.scenario import ScenarioError, load_scenario
 from planner.mass_per_area import MassPerArea
@@ -36,7 +37,7 @@ def test_the_slumped_surface_keeps_its_area_and_stands_at_the_repose_angle(repos
     y = np.array([-9.5, -9.0, -8.8, -8.0])
     z = np.array([0.5, -2.0, -2.1, 0.5])  # a steep trench 2 m deep
     cut = surface.cut(y, z)
-    slumped = cut.slumped(math.radians(repose_deg))
+    slumped = cut.slumped(math.radians(repose_deg), native_relax())
     assert slumped.z_m.sum() == pytest.approx(cut.z_m.sum(), rel=1e-12, abs=1e-9)
     steepest = np.abs(np.diff(slumped.z_m)).max()
     assert steepest <= surface.cell_m * math.tan(math.radians(repose_deg)) + RELAX_TOLERANCE_M

@@ -1,59 +1,47 @@
-"""The terrain strategy's slump kernel in C (planner/native/slump.c), bound with ctypes.
+"""The terrain strategy's slump kernel: planner/native/slump.c, bound with ctypes.
 
-planner.surface_estimate.relax_steps levels a surface estimate's steps in numpy: some 2,700
-half-sweeps of a 240-cell surface per slump, each a handful of numpy calls, and a terrain
-campaign slumps seven hypotheses after every period, so the kernel took most of its wall
-time. slump.c does the same arithmetic in the same order and gives the same bits
-(tests/test_native_slump.py), so the strategy decides the same with either. The planner does
-not build native code (it imports neither fmus nor orchestrator); the orchestrator builds the
-library like its own coupling (fmus.shared_library: cached by content, byte-reproducible) and
-hands the kernel to the strategy. Without gcc, or with a cache folder others may write, the
-strategy keeps the numpy kernel (`unavailable()` says why).
+The planner's surface estimate levels its steps with a kernel it is handed
+(planner.surface_estimate.Relax): some 2,700 half-sweeps of a 240-cell surface per slump, and a
+terrain campaign slumps seven hypotheses after every period, so the kernel is most of the
+strategy's arithmetic. The planner builds no native code (it imports neither fmus nor
+orchestrator); the orchestrator loads the library as built with the package (fmus.shared_library:
+compiled when the package was built, or by gcc after an edit of slump.c; byte-reproducible) and
+hands the kernel to the strategy. tests/slump_reference.py does the same arithmetic in the same
+order in numpy (the tests' oracle: the same bits, tests/test_native_slump.py).
 """
 
 from __future__ import annotations
 
 import ctypes
 from functools import lru_cache
-from pathlib import Path
 
 import numpy as np
 
-import planner
 from planner.surface_estimate import RELAX_MAX_SWEEPS, RELAX_TOLERANCE_M, Relax
-
-SOURCE_DIR = Path(planner.__file__).resolve().parent / "native"
 
 
 @lru_cache(maxsize=1)
-def _library() -> ctypes.CDLL | str:
-    """The built library, or why it cannot be had (one line)."""
+def _library() -> ctypes.CDLL:
+    """The loaded library. fmus.BuildError when it cannot be had (slump.c edited on a machine
+    without gcc, say)."""
     from fmus.builder import BuildError
-    from fmus.shared_library import build_library
+    from fmus.shared_library import build_library, library_sources
 
+    path = build_library("slump", *library_sources("slump"))
     try:
-        path = build_library("slump", SOURCE_DIR, ("slump.c",))
-    except BuildError as error:
-        return str(error).splitlines()[0]
-    library = ctypes.CDLL(str(path))
+        library = ctypes.CDLL(str(path))
+    except OSError as error:
+        raise BuildError(f"cannot load {path}: {error}") from None
     library.slump_relax.restype = ctypes.c_long
     library.slump_relax.argtypes = [ctypes.POINTER(ctypes.c_double), ctypes.c_long,
                                     ctypes.c_double, ctypes.c_double, ctypes.c_long]
     return library
 
 
-def unavailable() -> str | None:
-    """Why the C kernel cannot serve (one line), None when it can."""
-    library = _library()
-    return library if isinstance(library, str) else None
-
-
-def native_relax() -> Relax | None:
-    """The C slump kernel (planner.surface_estimate.Relax), None when unavailable."""
-    library = _library()
-    if isinstance(library, str):
-        return None
-    relax = library.slump_relax
+def native_relax() -> Relax:
+    """The C slump kernel (planner.surface_estimate.Relax). fmus.BuildError when the library
+    cannot be had."""
+    relax = _library().slump_relax
     pointer = ctypes.POINTER(ctypes.c_double)
 
     def relax_steps(z_m: np.ndarray, allowed_m: float) -> None:

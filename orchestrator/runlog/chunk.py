@@ -1,17 +1,15 @@
-"""The records of one MCAP chunk, built with numpy a whole batch of messages at a time.
+"""The records of one MCAP chunk, a whole batch of messages at a time.
 
 Message records (https://mcap.dev/spec#message-op0x05): opcode 0x05, record length (u64),
 channel id (u16), sequence (u32), log time and publish time (u64, ns), then the payload. The
 message index of a chunk maps each channel to (log time, offset in the chunk's records) pairs.
 
-Speed (a paper period: 11 channels x 1,400 samples, 1.3 MB of records): the sample rows of
-`add_batches` are encoded when the records are made, straight to their places, by
-`orchestrator.runlog.native` (rows.c: one pass, the GIL free, so on the log's writer thread
-while the run goes on); the message indexes come from the rows' places alone, before that.
-Without the C library the same bytes come from numpy: fields written through views with the
-rows' byte stride (`wire.strided`), one view per run of equally spaced fields, then a scatter
-of fixed-size byte rows (`_byte_rows`) into log-time order. Large buffers are reused from
-chunk to chunk (`BufferPool`).
+Speed (a paper period: 11 channels x 1,400 samples, 1.3 MB of records): the rows are encoded
+when the records are made, straight to their places, by `orchestrator.runlog.native` (rows.c:
+one pass, the GIL free, so on the log's writer thread while the run goes on); the message
+indexes come from the rows' places alone, before that. Large buffers are reused from chunk to
+chunk (`BufferPool`). tests/run_log_reference.py builds the same bytes the plain way (the
+tests' oracle).
 """
 
 from __future__ import annotations
@@ -26,7 +24,6 @@ import numpy as np
 from mcap.opcode import Opcode
 
 from orchestrator.runlog import native
-from orchestrator.runlog.wire import strided
 
 MESSAGE_HEADER = struct.Struct("<BQHIQQ")
 _SEQUENCE_AT, _LOG_TIME_AT = 11, 15  # byte offsets in MESSAGE_HEADER; publish time follows
@@ -47,14 +44,13 @@ class DoubleBatch:
 
 @dataclass(frozen=True)
 class _BatchLayout:
-    """Where things go in a row of `add_batches`: width (bytes), the row's constant bytes, and
-    per batch (header offset, [(first column, columns, byte offset, byte step)]); for rows.c,
-    the offsets of the sequence numbers and log times (one per batch) and of the doubles (all
-    batches' columns in order)."""
+    """Where things go in a row of `add_batches`: width (bytes), the row's constant bytes, each
+    batch's message header offset; for rows.c, the offsets of the sequence numbers and log
+    times (one per batch) and of the doubles (all batches' columns in order)."""
 
     width: int
     template: np.ndarray  # (width,) uint8
-    channels: tuple[tuple[int, tuple[tuple[int, int, int, int], ...]], ...]
+    headers: tuple[int, ...]
     sequence_at: np.ndarray  # (batches,) int64
     time_at: np.ndarray  # (batches,) int64
     double_at: np.ndarray  # (doubles,) int64
@@ -65,28 +61,24 @@ def _batch_layout(batches: tuple[tuple[int, tuple[bytes, ...]], ...]) -> _BatchL
     """The row layout of (channel id, prefixes) batches: each message's header then for each
     column its prefix and double."""
     row = bytearray()
-    channels, double_at = [], []
+    headers, double_at = [], []
     for channel_id, prefixes in batches:
         payload = sum(len(p) for p in prefixes) + 8 * len(prefixes)
-        header_at = len(row)
+        headers.append(len(row))
         row += MESSAGE_HEADER.pack(Opcode.MESSAGE, MESSAGE_HEADER.size - 9 + payload,
                                    channel_id, 0, 0, 0)
-        offsets = []
         for prefix in prefixes:
             row += prefix
-            offsets.append(len(row))
+            double_at.append(len(row))
             row += bytes(8)
-        channels.append((header_at, tuple(_runs(offsets))))
-        double_at += offsets
-    headers = np.array([header_at for header_at, _ in channels], dtype=np.int64)
-    return _BatchLayout(len(row), np.frombuffer(bytes(row), dtype=np.uint8), tuple(channels),
-                        headers + _SEQUENCE_AT, headers + _LOG_TIME_AT,
-                        np.array(double_at, dtype=np.int64))
+    at = np.array(headers, dtype=np.int64)
+    return _BatchLayout(len(row), np.frombuffer(bytes(row), dtype=np.uint8), tuple(headers),
+                        at + _SEQUENCE_AT, at + _LOG_TIME_AT, np.array(double_at, dtype=np.int64))
 
 
 class _SampleRows:
     """The rows of one `add_batches` call, kept as their values until the chunk's records are
-    made: its rows.c `job`, or `write` with numpy, puts row i at byte at[i]. Holds copies, not
+    made: its rows.c `job` puts row i at byte at[i]. Holds copies, not
     the caller's arrays: the records may be made on another thread after the caller moved on."""
 
     def __init__(self, layout: _BatchLayout, batches: list[DoubleBatch],
@@ -117,45 +109,6 @@ class _SampleRows:
             p(layout.template), p(self.times), len(self.first), p(layout.sequence_at),
             p(self.first), p(layout.time_at), len(self.column), p(layout.double_at),
             p(self.column), p(self.values))
-
-    def write(self, records: np.ndarray, at: np.ndarray) -> None:
-        """The same bytes as `job`, with numpy (where there is no C library)."""
-        layout, m = self.layout, len(self.times)
-        block = np.empty((m, layout.width), dtype=np.uint8)
-        block[:] = layout.template  # constant bytes (record headers, protobuf tags)
-        counter = np.arange(m, dtype=np.uint32)
-        field = 0
-        for first, (header_at, runs) in zip(self.first, layout.channels, strict=True):
-            np.add(counter, first, out=strided(block, header_at + _SEQUENCE_AT, "<u4", (m,),
-                                               (layout.width,)))
-            strided(block, header_at + _LOG_TIME_AT, "<u8", (m, 2), (layout.width, 8))[:] = \
-                self.times[:, None]  # log time and publish time
-            for _, count, offset, step in runs:
-                doubles = strided(block, offset, "<f8", (m, count), (layout.width, step))
-                for j in range(count):
-                    doubles[:, j] = self.values[self.column[field]]
-                    field += 1
-        _byte_rows(records, layout.width)[at] = block.reshape(-1).view(f"V{layout.width}")
-
-
-def _runs(offsets: list[int]):
-    """Runs of equally spaced offsets: (first index, count, first offset, step); a run of
-    doubles is one strided view (a tag before each double: step 9; packed: step 8)."""
-    start = 0
-    while start < len(offsets):
-        end = start + 1
-        step = offsets[end] - offsets[start] if end < len(offsets) else 8
-        while end < len(offsets) and offsets[end] - offsets[end - 1] == step:
-            end += 1
-        yield start, end - start, offsets[start], step
-        start = end
-
-
-def _byte_rows(buffer: np.ndarray, width: int) -> np.ndarray:
-    """`buffer` (flat uint8) as overlapping rows of `width` bytes, one starting at every byte:
-    indexing it with row start offsets copies whole rows in one numpy call."""
-    return np.ndarray((len(buffer) - width + 1,), dtype=f"V{width}", buffer=buffer,
-                      strides=(1,))
 
 
 class BufferPool:
@@ -189,14 +142,18 @@ class ChunkBuilder:
     order they were added in), because readers that go through a chunk in file order (and
     `mcap doctor`) expect log time never to go back inside a chunk. With a `pool`, the large
     buffers come from it and go back to it at `release()` (after the chunk is written).
+    Raises fmus.BuildError when rows.c cannot be had (orchestrator.runlog.native), here rather
+    than on the thread that makes the records.
     """
 
     def __init__(self, pool: BufferPool | None = None) -> None:
-        # Each group: (rows' log times (n,), row width w (bytes), data (n * w bytes: the rows,
-        # or an object with a rows.c job for them: _SampleRows, add_rows), [(channel id, message
-        # offsets inside a row (n,))], whether the times never go back). A row holds one
-        # message, or one message per channel of a batch of samples taken at the same time.
-        self._groups: list[tuple[np.ndarray, int, bytes | np.ndarray | object,
+        native.library()
+        # Each group: (rows' log times (n,), row width w (bytes), data (one message record of
+        # add_message, or an object with a rows.c job for its rows: _SampleRows, add_rows),
+        # [(channel id, message offsets inside a row (n,))], whether the times never go back).
+        # A row holds one message, or one message per channel of a batch of samples taken at
+        # the same time.
+        self._groups: list[tuple[np.ndarray, int, bytes | object,
                                  list[tuple[int, np.ndarray]], bool]] = []
         self.size = 0
         self.start_time: int | None = None
@@ -251,7 +208,7 @@ class ChunkBuilder:
         layout = _batch_layout(tuple((b.channel_id, tuple(b.prefixes)) for b in batches))
         rows = _SampleRows(layout, batches, log_time_ns)
         entries = [(batch.channel_id, np.full(m, header_at, dtype=np.int64))
-                   for batch, (header_at, _) in zip(batches, layout.channels, strict=True)]
+                   for batch, header_at in zip(batches, layout.headers, strict=True)]
         self._add_group(rows.times, layout.width, rows, entries)
 
     def add_message(self, channel_id: int, sequence: int, log_time_ns: int, data: bytes) -> None:
@@ -268,32 +225,9 @@ class ChunkBuilder:
         """Message records of one channel at times (n,) ns, each `width` bytes, that the
         rows.c job `rows.job(records, at, keep)` writes (record i at byte at[i] of the records,
         a uint8 array) when the chunk's records are made, maybe on another thread: `rows`
-        holds its own data. Only with the C library (orchestrator.runlog.native). Used for /tf
-        (scene.transform_records)."""
+        holds its own data. Used for /tf (scene.transform_records)."""
         times = np.asarray(log_time_ns, dtype=np.uint64)
         self._add_group(times, width, rows, [(channel_id, np.zeros(len(times), dtype=np.int64))])
-
-    def add_grouped(self, channel_id: int, first_sequence: int, log_time_ns: np.ndarray,
-                    groups) -> None:
-        """Messages of one channel at times (n,) ns whose payloads come in groups of equal size,
-        [(sample indices (n_g,), payloads (n_g, w_g) uint8)], together covering 0..n-1."""
-        times = np.asarray(log_time_ns, dtype=np.uint64)
-        n = len(times)
-        sequences = first_sequence + np.arange(n, dtype=np.uint32)
-        # Each payload size is a group of rows of its own: equal times have equal timestamps,
-        # hence equal sizes, so the stable sort in _build keeps sample order within the channel.
-        for index, payload in groups:
-            count, size = payload.shape
-            width = MESSAGE_HEADER.size + size
-            rows = np.empty((count, width), dtype=np.uint8)
-            rows[:, :MESSAGE_HEADER.size] = np.frombuffer(MESSAGE_HEADER.pack(
-                Opcode.MESSAGE, width - 9, channel_id, 0, 0, 0), dtype=np.uint8)
-            rows[:, MESSAGE_HEADER.size:] = payload
-            strided(rows, _SEQUENCE_AT, "<u4", (count,), (width,))[:] = sequences[index]
-            strided(rows, _LOG_TIME_AT, "<u8", (count, 2), (width, 8))[:] = \
-                times[index][:, None]  # log time and publish time
-            self._add_group(times[index], width, rows.reshape(-1),
-                            [(channel_id, np.zeros(count, dtype=np.int64))])
 
     def _place(self) -> tuple[np.ndarray, np.ndarray, dict[int, bytes]]:
         """Where each row goes (log-time order) and the message indexes; the records buffer."""
@@ -339,33 +273,26 @@ class ChunkBuilder:
         """The chunk's records, in log-time order (a bytes-like view). Once
         `message_indexes` has been called, this may be called on another thread (nothing is
         added meanwhile): the rows are written here, all in one call of rows.c with the GIL
-        free (numpy without the C library)."""
+        free."""
         if not self._groups:
             return memoryview(b"")
         if self._records is None:
             records, placed, _ = self._place()
-            in_c, base, jobs, keep = native.library() is not None, 0, [], []
+            base, jobs, keep = 0, [], []
             for g_times, width, data, _, _ in self._groups:
                 at = placed[base:base + len(g_times)]
                 base += len(g_times)
-                if in_c and len(at) and int(at.max()) + width > len(records):
+                if int(at.max()) + width > len(records):
                     raise RuntimeError("a chunk's rows do not fit its records (a bug)")
-                if in_c and hasattr(data, "job"):  # _SampleRows, or rows of add_rows
+                if hasattr(data, "job"):  # _SampleRows, or rows of add_rows
                     jobs.append(data.job(records, at, keep))
-                elif in_c:
+                else:  # one message record (add_message)
                     rows = np.frombuffer(data, dtype=np.uint8)
                     keep.append(rows)
                     jobs.append(native.job(native.PLACE_ROWS, native.pointer(records),
                                            native.pointer(at), len(at), width,
                                            native.pointer(rows)))
-                elif hasattr(data, "write"):
-                    data.write(records, at)
-                elif len(at) == 1:
-                    records[at[0]:at[0] + width] = np.frombuffer(data, dtype=np.uint8)
-                else:
-                    _byte_rows(records, width)[at] = np.frombuffer(data, dtype=f"V{width}")
-            if jobs:
-                native.write(jobs)
+            native.write(jobs)
             self._records = memoryview(records)
         return self._records
 

@@ -19,7 +19,6 @@ frame is the point (u, v) of `plant_models.geometry`'s link frames.
 from __future__ import annotations
 
 import math
-from functools import lru_cache
 
 import numpy as np
 from foxglove.messages import (
@@ -35,7 +34,7 @@ from foxglove.messages import (
 )
 
 from orchestrator.runlog import native
-from orchestrator.runlog.wire import doubles, field, rows, strided, varint, varint_digits
+from orchestrator.runlog.wire import doubles, field, rows, varint
 from plant_models.geometry import ExcavatorGeometry
 
 WORLD = "world"
@@ -98,54 +97,15 @@ def _string_field(number: int, text: str) -> bytes:
     return field(number, text.encode())
 
 
-def encode_frame_transforms(transforms, log_time_ns: np.ndarray):
-    """foxglove.FrameTransforms messages (serialized protobuf), one per sample, from
-    `link_transforms` output and the samples' times (n,) ns (the transforms' timestamps).
-
-    Returns groups [(sample indices, payloads (n_g, w_g) uint8)] of equal-size messages (sizes
-    differ only through the timestamp varints); `ChunkBuilder.add_grouped` puts them in
-    order. Explicit zeros are written (valid protobuf) so every other part has a fixed size.
-    """
-    ns = np.asarray(log_time_ns, dtype=np.uint64)
-    billion = np.uint64(1_000_000_000)
-    second_digits, second_lengths = varint_digits(ns // billion)
-    nano_digits, nano_lengths = varint_digits(ns % billion)
-    kinds = second_lengths * _MAX_VARINT + nano_lengths
-    # Rows sorted by timestamp size (in sample order within a size): each size is a slice.
-    order = np.argsort(kinds, kind="stable")
-    kinds, second_digits, nano_digits = kinds[order], second_digits[order], nano_digits[order]
-    pose = np.stack([np.concatenate([translation, rotation], axis=1)
-                     for _, _, translation, rotation in transforms], axis=1)[order]  # (n, T, 7)
-    names = tuple((parent, child) for parent, child, _, _ in transforms)
-    bounds = [0, *(np.flatnonzero(np.diff(kinds)) + 1).tolist(), len(kinds)]
-    groups = []
-    for begin, end in zip(bounds[:-1], bounds[1:], strict=False):
-        n = end - begin
-        seconds, nanos = divmod(int(kinds[begin]), _MAX_VARINT)
-        stamp = np.empty((n, 2 + seconds + nanos), dtype=np.uint8)  # Timestamp sec, nsec
-        stamp[:, 0], stamp[:, 1 + seconds] = 0x08, 0x10
-        stamp[:, 1:1 + seconds] = second_digits[begin:end, :seconds]
-        stamp[:, 2 + seconds:] = nano_digits[begin:end, :nanos]
-        template, places = _transforms_layout(names, stamp.shape[1])
-        width = len(template)
-        block = np.empty((n, width), dtype=np.uint8)
-        block[:] = template
-        for i, (stamp_at, doubles_at) in enumerate(places):
-            block[:, stamp_at:stamp_at + stamp.shape[1]] = stamp
-            # translation x, y, z then rotation x, y, z, w: tag + double each, 2 bytes between
-            strided(block, doubles_at, "<f8", (n, 3), (width, 9))[:] = pose[begin:end, i, :3]
-            strided(block, doubles_at + 29, "<f8", (n, 4), (width, 9))[:] = pose[begin:end, i, 3:]
-        groups.append((order[begin:end], block))
-    return groups
-
-
 def transform_records(transforms, log_time_ns: np.ndarray, channel_id: int,
-                      first_sequence: int) -> list[tuple[np.ndarray, int, TransformRows]] | None:
-    """The /tf message records of `encode_frame_transforms`, written by rows.c when the
-    chunk's records are made (ChunkBuilder.add_rows): [(sample indices, record size in bytes,
-    their TransformRows)], one entry per record size; None without the C library."""
-    if native.library() is None:
-        return None
+                      first_sequence: int) -> list[tuple[np.ndarray, int, TransformRows]]:
+    """foxglove.FrameTransforms message records of `channel_id`, one per sample, from
+    `link_transforms` output and the samples' times (n,) ns (the transforms' timestamps;
+    sequence numbers from `first_sequence`), written by rows.c when the chunk's records are made
+    (ChunkBuilder.add_rows): [(sample indices, record size in bytes, their TransformRows)], one
+    entry per record size (sizes differ only through the timestamp varints). Explicit zeros are
+    written (valid protobuf) so that every other part has a fixed size. tests/run_log_reference.py
+    encodes the same messages the plain way (the tests' oracle)."""
     ns = np.asarray(log_time_ns, dtype=np.uint64)
     billion = np.uint64(1_000_000_000)
     stamp = 2 + _varint_sizes(ns // billion) + _varint_sizes(ns % billion)  # Timestamp bytes
@@ -201,28 +161,6 @@ def _varint_sizes(values: np.ndarray) -> np.ndarray:
 
 _MESSAGE_HEADER_SIZE = 31  # MCAP message record: opcode, length, channel, sequence, 2 times
 _POSE_FIELDS_SIZE = 2 + 3 * 9 + 2 + 4 * 9  # translation (Vector3) and rotation (Quaternion)
-
-
-@lru_cache(maxsize=32)  # the same frames every period and a few timestamp sizes
-def _transforms_layout(names: tuple[tuple[str, str], ...], stamp_size: int
-                       ) -> tuple[np.ndarray, tuple[tuple[int, int], ...]]:
-    """A FrameTransforms row with zeros for the timestamps and doubles: (its bytes, per
-    transform (offset of its Timestamp's content, offset of its translation's first double))."""
-    doubles_tags = (b"\x22\x1b" + b"".join(bytes([n << 3 | 1]) + bytes(8) for n in (1, 2, 3))
-                    + b"\x2a\x24" + b"".join(bytes([n << 3 | 1]) + bytes(8) for n in (1, 2, 3, 4)))
-    row, places = b"", []
-    for parent, child in names:
-        stamp = b"\x0a" + varint(stamp_size)  # FrameTransform.timestamp
-        strings = _string_field(2, parent) + _string_field(3, child)
-        transform = stamp + bytes(stamp_size) + strings + doubles_tags
-        head = b"\x0a" + varint(len(transform))  # FrameTransforms.transforms
-        at = len(row) + len(head)
-        places.append((at + len(stamp), at + len(stamp) + stamp_size + len(strings) + 3))
-        row += head + transform
-    return np.frombuffer(row, dtype=np.uint8), tuple(places)
-
-
-_MAX_VARINT = 16  # > the longest varint, to pack two varint lengths into one number
 
 
 def _reach(geometry: ExcavatorGeometry | None) -> float:

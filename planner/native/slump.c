@@ -1,10 +1,10 @@
 /*
- * The surface estimate's slump (planner.surface_estimate.relax_steps) in C, the same arithmetic
- * in the same order, so the same bits: half-sweeps over the even, then the odd neighbour pairs
- * (each set disjoint, so a pair's transfer does not depend on the order within its set), each
- * transfer levelling its pair to the allowed step exactly, until no step exceeds it by more
- * than `tolerance`. Built and bound by the orchestrator (orchestrator.campaign.native_slump);
- * the planner itself runs without it.
+ * The surface estimate's slump kernel (planner.surface_estimate.Relax): half-sweeps over the
+ * even, then the odd neighbour pairs (each set disjoint, so a pair's transfer does not depend on
+ * the order within its set), each transfer levelling its pair to the allowed step exactly, until
+ * no step exceeds it by more than `tolerance`. Built with the package and bound by the
+ * orchestrator (orchestrator.campaign.native_slump), which hands it to the planner;
+ * tests/slump_reference.py does the same arithmetic in the same order in numpy (the same bits).
  */
 #include <math.h>
 

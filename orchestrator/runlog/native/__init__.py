@@ -1,9 +1,9 @@
-"""The run log's row filling in C (rows.c), bound with ctypes.
+"""The run log's row filling in C (rows.c), bound with ctypes: the one implementation.
 
-`library()` is the built library (gcc, built on first use and cached like the FMUs:
-fmus.shared_library), or None where it cannot be had (no gcc, a cache folder that cannot be
-written, a big-endian host): the chunk
-builder then fills its rows with numpy, to the same bytes (tests/test_run_log_fast_paths.py).
+`library()` is the library built with the package (fmus.shared_library: compiled when the
+package was built, or by gcc after an edit of rows.c); BuildError where it cannot be had, and on
+a big-endian host (rows.c copies native integers and doubles into little-endian records).
+tests/run_log_reference.py encodes the same bytes the plain way, as the tests' oracle.
 `write(jobs)` runs a table of rows.c jobs (`job(kind, *arguments)` each) in one call;
 `pointer(array)` is the address of an array, as a job's argument.
 """
@@ -13,24 +13,24 @@ from __future__ import annotations
 import ctypes
 import sys
 from functools import lru_cache
-from pathlib import Path
 
 import numpy as np
 
 
 @lru_cache(maxsize=1)
-def library() -> ctypes.CDLL | None:
-    """rows.c built and loaded, or None (see the module docstring)."""
+def library() -> ctypes.CDLL:
+    """rows.c built and loaded. BuildError (fmus.BuildError) when it cannot be had."""
     from fmus.builder import BuildError
-    from fmus.shared_library import build_library
+    from fmus.shared_library import build_library, library_sources
 
-    if sys.byteorder != "little":  # rows.c copies native integers and doubles
-        return None
+    if sys.byteorder != "little":
+        raise BuildError("the run log's rows.c writes little-endian records from native "
+                         "integers and doubles: this big-endian host cannot write run logs")
+    path = build_library("runlog_rows", *library_sources("runlog_rows"))
     try:
-        path = build_library("runlog_rows", Path(__file__).resolve().parent, ("rows.c",))
         loaded = ctypes.CDLL(str(path))
-    except (BuildError, OSError):  # no gcc; a cache folder that cannot be written or read
-        return None
+    except OSError as error:
+        raise BuildError(f"cannot load {path}: {error}") from None
     loaded.write_records.argtypes = [ctypes.c_void_p, ctypes.c_long]
     loaded.write_records.restype = ctypes.c_long
     return loaded
