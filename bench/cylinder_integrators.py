@@ -4,7 +4,7 @@
 
 Runs period 1 of scenarios/paper-2020.toml (RK4, as before the scenario chose RODAS3) and
 records each cylinder's inputs per 10 ms step (u, F_ext, mass_load, the pump's p_pump and p_LS).
-The reference: the same inputs through plant_models.cylinder_ode, the cylinder's law written
+The reference: the same inputs through tests/cylinder_ode.py, the cylinder's law written
 again in Python, under scipy's Radau at rtol 1e-10 (about 7 s per joint). Then replays them open
 loop through each joint's HydraulicCylinder FMU (the scenario's parameters) with: RK4 at 2000
 substeps per step (5 us), RK4 at its stable substep (the old default), and RODAS3 at tolerances
@@ -25,13 +25,15 @@ import numpy as np
 from fmpy import read_model_description
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the test oracle
+
+from cylinder_ode import reference_run  # noqa: E402
 
 import fmus  # noqa: E402
 from fmus.runs import FastSlave  # noqa: E402
 from orchestrator.campaign import run_campaign  # noqa: E402
 from orchestrator.plants import simulated_excavator  # noqa: E402
 from orchestrator.scenario import load_scenario  # noqa: E402
-from plant_models.cylinder_ode import reference_run  # noqa: E402
 from plant_models.linkage import JOINT_NAMES  # noqa: E402
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "paper-2020.toml"

@@ -1,4 +1,4 @@
-"""HydraulicCylinder against a second implementation of its law: plant_models.cylinder_ode (the
+"""HydraulicCylinder against a second implementation of its law: tests/cylinder_ode.py (the
 law in Python, written from model.c's documentation) integrated by scipy's Radau at rtol 1e-10
 with its own finite-difference Jacobian. Over the model's valid range away from the end stops
 (which only the FMU's integrators model) and over the paper's period 1, the FMU's RK4 at fine
@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cylinder_ode import INPUTS, reference_run
 from cylinder_start import start_parameters
 from test_cylinder_rodas3 import H, run
 from test_hydraulic_cylinder_energy import varied_inputs
@@ -22,7 +23,6 @@ import fmus
 from orchestrator.campaign import run_campaign
 from orchestrator.plants import simulated_excavator
 from orchestrator.scenario import load_scenario
-from plant_models.cylinder_ode import INPUTS, reference_run
 
 PAPER = Path(__file__).resolve().parents[1] / "scenarios" / "paper-2020.toml"
 X0 = 0.6  # m: these inputs then keep the stroke within 0.56 .. 1.11 of its 1.3 m

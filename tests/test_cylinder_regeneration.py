@@ -16,12 +16,12 @@ import math
 
 import numpy as np
 import pytest
+from cylinder_ode import reference_run
 from cylinder_start import start_parameters
 from scipy.optimize import fsolve
 from test_cylinder_rodas3 import H, run
 
 import fmus
-from plant_models.cylinder_ode import reference_run
 
 SPOOL = 0.5
 PULL_N = -15.0e3  # a pulling load (the stick's weight drawing it in) the pump keeps up with
@@ -90,7 +90,7 @@ def test_a_strong_pull_needs_the_make_up_sized_for_the_pump(fmu):
 
 
 def test_regeneration_under_radau_and_the_energy_balance(fmu):
-    """The same law written in Python (plant_models.cylinder_ode) under Radau, through the
+    """The same law written in Python (tests/cylinder_ode.py) under Radau, through the
     passage's opening and closing (the load turns from pulling to pushing), and the energy
     outputs' balance with the passage's throttling in E_throttling."""
     n = 150
