@@ -20,8 +20,12 @@ $(PY):
 
 # The project itself: editable, built with the locked setuptools (no build isolation, which would
 # fetch whatever setuptools is newest that day), with no dependency resolution of its own;
-# setup.py compiles the FMUs and native libraries into fmus/_built/ (gcc is needed here only).
-$(RUN_STAMP): pyproject.toml setup.py requirements/run.txt | $(PY)
+# setup.py compiles the FMUs and native libraries into fmus/_built/ (gcc is needed here only):
+# after an edit of what they are compiled from, the install runs again (and recompiles that).
+NATIVE_SOURCES := $(wildcard fmus/*/*.[ch] fmus/*/variables.toml fmus/shared/*/*.[ch] \
+    planner/native/*.c orchestrator/*/native/*.c) $(addprefix fmus/,builder.py codegen.py \
+    codegen3.py table.py toolchain.py shared_library.py prebuild.py)
+$(RUN_STAMP): pyproject.toml setup.py $(NATIVE_SOURCES) requirements/run.txt | $(PY)
 	$(PIP) -r requirements/run.txt
 	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
 	$(PY) -m pip check
