@@ -13,7 +13,7 @@ export OPENBLAS_NUM_THREADS := 1
 export OMP_NUM_THREADS := 1
 export MKL_NUM_THREADS := 1
 
-.PHONY: run test bench lint lock clean
+.PHONY: run test test-all bench lint lock clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -40,7 +40,12 @@ run: $(RUN_STAMP)
 	$(VENV)/bin/excosim fmus build
 	$(VENV)/bin/excosim run scenarios/paper-2020.toml
 
+# The fast set (tests not marked slow: minutes on 2 cores); test-all runs everything (CI does).
 test: $(TEST_STAMP)
+	$(VENV)/bin/excosim fmus build
+	$(PY) -m pytest -q -m "not slow"
+
+test-all: $(TEST_STAMP)
 	$(VENV)/bin/excosim fmus build
 	$(PY) -m pytest -q
 

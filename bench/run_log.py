@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from orchestrator.runlog import RunLog, read_run
+from orchestrator.runlog import RunDescription, RunLog, read_run
 from plant_models import presets
 from plant_models.plant import JOINTS, PeriodMeasurement
 
@@ -62,9 +62,10 @@ def main() -> None:
     fmu.write_bytes(np.random.default_rng(0).bytes(60_000))
     path = fmu_dir / "run.mcap"
     seconds, cpu_seconds = [], []
-    with RunLog(path, scenario={"name": "bench"}, scenario_text="", scenario_name="bench",
-                fmus={"HydraulicCylinder": fmu}, plant_kind="sim", target_mass_kg=8.5,
-                geometry=presets.get("paper")) as log:
+    with RunLog(path, RunDescription(
+            scenario={"name": "bench"}, scenario_text="", scenario_name="bench",
+            fmus={"HydraulicCylinder": fmu}, plant_kind="sim", target_mass_kg=8.5,
+            geometry=presets.get("paper"))) as log:
         for k, period in enumerate(periods):
             begin, cpu = time.perf_counter(), time.process_time()
             log.log_period({"k": k + 1, "mass_kg": 8.5}, period, k * SAMPLES * STEP_S)

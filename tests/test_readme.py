@@ -16,7 +16,7 @@ README = ROOT / "README.md"
 FENCE = re.compile(r"^```([^\n`]*)\n(.*?)^```\s*$", re.M | re.S)
 INDENTED = re.compile(r"(?:^|\n\n)((?: {4}[^\n]*\n)+)")  # a Markdown indented code block
 LANGUAGES = {"sh": "shell", "bash": "shell", "python": "python"}
-SETUP = ["make run", "make test"]
+SETUP = ["make run", "make test-all"]
 # What a block may use of the project, linked into the fresh folder (the README's commands are
 # written for a shell in the project's folder).
 PROJECT_ITEMS = ("scenarios", "foxglove", "examples", "bench", "sweeps")
@@ -57,8 +57,10 @@ def dry_run(target: str) -> str:
 
 
 def test_make_run_installs_the_runtime_lock_only_and_make_test_adds_the_test_lock():
-    run, test = dry_run("run"), dry_run("test")
-    for plan in (run, test):
+    run, test, everything = dry_run("run"), dry_run("test"), dry_run("test-all")
+    assert '-m pytest -q -m "not slow"' in test and "-m pytest -q\n" in everything
+    assert "make test-all" in (ROOT / ".ci" / "run").read_text()
+    for plan in (run, test, everything):
         assert "--require-hashes -r requirements/run.txt" in plan
         assert "--no-build-isolation -e ." in plan
         assert "[test]" not in plan  # nothing resolved from pyproject's ranges

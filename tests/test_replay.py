@@ -26,7 +26,7 @@ from orchestrator.review.replay import (
     compare_periods,
     replay_run,
 )
-from orchestrator.runlog import RunLog, read_run
+from orchestrator.runlog import RunDescription, RunLog, read_run
 from orchestrator.scenario import load_scenario, scenario_from_dict
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -184,10 +184,11 @@ def test_an_unsafe_attachment_is_refused_even_with_trust(paper_run, tmp_path):
     cylinder, pile = _linked_fmu(tmp_path), fmus.build("Pile")
     data = load_scenario(PAPER, ["periods=1"]).to_dict()
     path = tmp_path / "linked.mcap"
-    log = RunLog(path, scenario=data, scenario_text=json.dumps(data), scenario_name="linked",
-                 fmus={"boom": cylinder, "stick": fmus.build("HydraulicCylinder"),
-                       "bucket": fmus.build("HydraulicCylinder"), "pile": pile},
-                 plant_kind="sim", target_mass_kg=30.0)
+    log = RunLog(path, RunDescription(
+        scenario=data, scenario_text=json.dumps(data), scenario_name="linked",
+        fmus={"boom": cylinder, "stick": fmus.build("HydraulicCylinder"),
+              "bucket": fmus.build("HydraulicCylinder"), "pile": pile},
+        plant_kind="sim", target_mass_kg=30.0))
     log.close("error", "period 1: RuntimeError: stopped")  # a replay would dig period 1
     for trust in (False, True):
         with pytest.raises(ReplayRefused) as refused:
@@ -251,9 +252,9 @@ def test_a_run_that_hit_the_workspace_limit_replays_to_the_same_end(runs):
 def test_a_lab_run_is_refused(paper_run, tmp_path):
     scenario = load_scenario(PAPER)
     path = tmp_path / "lab.mcap"
-    with RunLog(path, scenario=scenario.to_dict(), scenario_text=scenario.source_text,
-                scenario_name="lab", fmus={"pile": fmus.build("Pile")}, plant_kind="lab",
-                target_mass_kg=3.5):
+    with RunLog(path, RunDescription(
+            scenario=scenario.to_dict(), scenario_text=scenario.source_text, scenario_name="lab",
+            fmus={"pile": fmus.build("Pile")}, plant_kind="lab", target_mass_kg=3.5)):
         pass
     with pytest.raises(ReplayRefused, match="lab run: it was measured on the real machine"):
         replay_run(path, trust=True)
@@ -370,9 +371,10 @@ def test_replay_command_refuses_a_scenario_this_version_does_not_accept(tmp_path
     data["trajectory"]["k_S"] = 0.5  # a key of another version
     cylinder, pile = fmus.build("HydraulicCylinder"), fmus.build("Pile")
     path = tmp_path / "future.mcap"
-    log = RunLog(path, scenario=data, scenario_text=json.dumps(data), scenario_name="future",
-                 fmus={"boom": cylinder, "stick": cylinder, "bucket": cylinder, "pile": pile},
-                 plant_kind="sim", target_mass_kg=30.0)
+    log = RunLog(path, RunDescription(
+        scenario=data, scenario_text=json.dumps(data), scenario_name="future",
+        fmus={"boom": cylinder, "stick": cylinder, "bucket": cylinder, "pile": pile},
+        plant_kind="sim", target_mass_kg=30.0))
     log.close("error", "period 1: RuntimeError: stopped")
     message, status = replay(path, trust=False, as_json=False)
     assert status == 2 and "\n" not in message

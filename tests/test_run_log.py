@@ -31,7 +31,7 @@ from mcap_protobuf.decoder import DecoderFactory
 from run_log_files import chunks, cut_inside_chunk
 from scipy.spatial.transform import Rotation
 
-from orchestrator.runlog import RunLog, RunLogError, read_run
+from orchestrator.runlog import LogSettings, RunDescription, RunLog, RunLogError, read_run
 from orchestrator.runlog.scene import FRAMES
 from orchestrator.runlog.wire import varint, varint_digits
 from plant_models import presets
@@ -89,11 +89,13 @@ def fmus(tmp_path):
     return fake_fmus(tmp_path)
 
 
-def open_log(path, fmus, **options):
-    return RunLog(path, scenario={"name": "test", "periods": 3, "target_mass_kg": 8.5},
-                  scenario_text="name = 'test'\nperiods = 3\n", scenario_name="test",
-                  fmus=fmus, plant_kind="sim", target_mass_kg=8.5, geometry=GEOMETRY,
-                  **options)
+def open_log(path, fmus, overwrite=False, **settings):
+    """A log of a 3-period test run; settings: LogSettings' fields."""
+    return RunLog(path, RunDescription(
+        scenario={"name": "test", "periods": 3, "target_mass_kg": 8.5},
+        scenario_text="name = 'test'\nperiods = 3\n", scenario_name="test", fmus=fmus,
+        plant_kind="sim", target_mass_kg=8.5, geometry=GEOMETRY), LogSettings(**settings),
+        overwrite=overwrite)
 
 
 def write_run(path, fmus, periods=3, termination="periods"):
@@ -280,11 +282,12 @@ _WRITER = textwrap.dedent("""
     import numpy as np
     from plant_models import presets
     from plant_models.plant import PeriodMeasurement
-    from orchestrator.runlog import RunLog
+    from orchestrator.runlog import RunDescription, RunLog
     path, arrays, records, fmu = sys.argv[1:]
     data = np.load(arrays)
-    log = RunLog(path, scenario={}, scenario_text="", scenario_name="killed", fmus={"f": fmu},
-                 plant_kind="sim", target_mass_kg=8.5, geometry=presets.get("paper"))
+    log = RunLog(path, RunDescription(
+        scenario={}, scenario_text="", scenario_name="killed", fmus={"f": fmu}, plant_kind="sim",
+        target_mass_kg=8.5, geometry=presets.get("paper")))
     for k, record in enumerate(json.loads(records)):
         if k == 2:
             print("logged 2", flush=True)
@@ -387,8 +390,9 @@ def test_without_geometry_or_profile_only_the_samples_display_and_records_are_lo
     bare = measurement(0)
     bare = PeriodMeasurement(bare.t_s, bare.joints_rad, bare.reference_rad, 1.0,
                              {"pile.bucket_mass": bare.signals["pile.bucket_mass"]})
-    with RunLog(path, scenario={}, scenario_text='{"name": "lab"}', scenario_name="lab", fmus={},
-                plant_kind="lab", target_mass_kg=2.0, fsync=True) as log:
+    with RunLog(path, RunDescription(scenario={}, scenario_text='{"name": "lab"}',
+                                     scenario_name="lab", fmus={}, plant_kind="lab",
+                                     target_mass_kg=2.0), LogSettings(fsync=True)) as log:
         log.log_period(record(1), bare, 0.0)
     run = read_run(path, tolerant=False)
     assert run.message_counts == {"/joints": SAMPLES, "/pile/bucket": SAMPLES, "/period": 1,

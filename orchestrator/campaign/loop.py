@@ -114,19 +114,21 @@ def open_run_log(scenario: Scenario, log_path: str | Path, overwrite: bool = Fal
     """The MCAP run log of a campaign (orchestrator.runlog.writer.RunLog)."""
     from orchestrator.plants.master import derivation_notes, fmu_path
     from orchestrator.plants.role_notes import cylinder_notes
+    from orchestrator.runlog.description import LogSettings, RunDescription
     from orchestrator.runlog.writer import RunLog
     from plant_models.model_spec import ROLE_OF
 
     specs = scenario.fmu_specs()
     fmus = {role: fmu_path(spec, role) for role, spec in specs.items()}
     derived = {role: derivation_notes(role, ROLE_OF[role], spec) for role, spec in specs.items()}
-    return RunLog(Path(log_path), scenario=scenario.to_dict(),
-                  scenario_text=scenario_source_text(scenario), scenario_name=scenario.name,
-                  fmus=fmus, plant_kind=scenario.plant.kind,
-                  target_mass_kg=scenario.target_mass_kg, geometry=scenario.geometry(),
-                  sample_rate_hz=scenario.log.sample_rate_hz, overrides=scenario.overrides,
-                  overwrite=overwrite, derived=derived, background=True,
-                  arm_coupling=arm_coupling_of(scenario), notes=cylinder_notes(scenario))
+    run = RunDescription(
+        scenario=scenario.to_dict(), scenario_text=scenario_source_text(scenario),
+        scenario_name=scenario.name, fmus=fmus, plant_kind=scenario.plant.kind,
+        target_mass_kg=scenario.target_mass_kg, geometry=scenario.geometry(),
+        overrides=scenario.overrides, derived=derived, arm_coupling=arm_coupling_of(scenario),
+        notes=cylinder_notes(scenario))
+    settings = LogSettings(sample_rate_hz=scenario.log.sample_rate_hz, background=True)
+    return RunLog(Path(log_path), run, settings, overwrite=overwrite)
 
 
 def scenario_source_text(scenario: Scenario) -> str:

@@ -5,7 +5,8 @@
     run.periods, run.channels["/joints"].of_period(2)["measured_stick_rad"]
 """
 
+from orchestrator.runlog.description import LogSettings, RunDescription
 from orchestrator.runlog.reader import RunFile, RunLogError, read_run
 from orchestrator.runlog.writer import RunLog
 
-__all__ = ["RunFile", "RunLog", "RunLogError", "read_run"]
+__all__ = ["LogSettings", "RunDescription", "RunFile", "RunLog", "RunLogError", "read_run"]

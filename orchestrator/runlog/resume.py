@@ -36,6 +36,7 @@ from mcap.data_stream import ReadDataStream
 from mcap.opcode import Opcode
 from mcap.records import Channel, Schema
 
+from orchestrator.runlog.description import LogSettings
 from orchestrator.runlog.inflate import ChunkRefused
 from orchestrator.runlog.inflate import records as chunk_records
 from orchestrator.runlog.lock import being_written
@@ -162,7 +163,7 @@ def open_continued(source: Path, output: Path | None, prefix: bytes, *, periods:
     output None or the source itself, in place (module docstring). OSError (FileExistsError)
     when the file cannot be made; nothing is left behind then. background: as RunLog's."""
     settings = {"periods": periods, "note": note, "geometry": geometry,
-                "sample_rate_hz": sample_rate_hz, "background": background}
+                "settings": LogSettings(sample_rate_hz=sample_rate_hz, background=background)}
     if output is not None and not _same_file(source, output):
         try:
             stream = open(output, "wb" if overwrite else "xb")

@@ -54,7 +54,7 @@ format), reader (reading it back).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from pathlib import Path
 from typing import BinaryIO
 
@@ -64,6 +64,7 @@ from foxglove.messages import FrameTransforms, SceneUpdate
 from orchestrator.runlog import scene
 from orchestrator.runlog.channels import ChannelTable
 from orchestrator.runlog.chunk import ChunkBuilder, DoubleBatch
+from orchestrator.runlog.description import LogSettings, RunDescription
 from orchestrator.runlog.lock import being_written, lock_for_writing
 from orchestrator.runlog.mcap_records import McapChunkWriter
 from orchestrator.runlog.metadata import (
@@ -104,73 +105,48 @@ class RunLog:
     """Writes one campaign run to an MCAP file at `path` (refuses an existing file unless
     `overwrite`).
 
-    scenario: the resolved scenario (JSON-able dict); scenario_text: the scenario file's text;
-    fmus: name -> path of every FMU used; plant_kind: "sim" or "lab"; target_mass_kg: the
-    target dug mass (kg); geometry: the arm, for the 3D channels (None: no /tf, /scene/arm).
-    overrides: the `--set` items applied to the scenario file (recorded for review).
-    derived: FMU name -> {output role: how it is derived} for the outputs the master computes
-    instead of reading them from the FMU (orchestrator.plants.derived; recorded per role).
-    arm_coupling: cylinder role -> how the step loop couples the arm's cross inertia into it
-    (orchestrator.plants.native.arm_coupling_notes; recorded per role); notes: role -> further
-    fields in words (orchestrator.plants.role_notes; recorded per role).
-    transform_rate_hz: rate of /tf (decimated from the samples). sample_rate_hz: rate of the
-    high-rate sample channels (None: every sample; see samples.decimated). fsync: also force
-    each period to the disk (survives a power loss, not only a killed process; costs a disk
-    sync per period; log_period then returns once its period is on the disk). background:
-    compress and write on the log's own thread (module docstring); False: every period is
-    written and flushed before log_period returns.
+    run: what the log records of the run (its metadata); settings: how it is written
+    (orchestrator.runlog.description).
     Use as a context manager: an exception inside closes the log with termination "error";
     leaving the block normally closes it with "periods" unless `close` was called.
     """
 
-    def __init__(self, path: str | Path, *, scenario: Mapping, scenario_text: str,
-                 scenario_name: str, fmus: Mapping[str, str | Path], plant_kind: str,
-                 target_mass_kg: float, geometry: ExcavatorGeometry | None = None,
-                 transform_rate_hz: float = 25.0, sample_rate_hz: float | None = None,
-                 overrides: Sequence[str] = (), fsync: bool = False,
-                 overwrite: bool = False,
-                 derived: Mapping[str, Mapping[str, str]] | None = None,
-                 background: bool = False,
-                 arm_coupling: Mapping[str, str] | None = None,
-                 notes: Mapping[str, Mapping[str, str]] | None = None) -> None:
-        if not (isinstance(target_mass_kg, int | float) and math.isfinite(target_mass_kg)):
-            raise ValueError(f"target_mass_kg must be a finite number, got {target_mass_kg!r}")
-        if not transform_rate_hz > 0.0:
-            raise ValueError(f"transform_rate_hz must be > 0, got {transform_rate_hz!r}")
-        if sample_rate_hz is not None and not sample_rate_hz > 0.0:
-            raise ValueError(f"sample_rate_hz must be > 0 or None, got {sample_rate_hz!r}")
-        fmu_files = read_fmus(fmus)
-        scenario_json = to_json(dict(scenario), "scenario")
+    def __init__(self, path: str | Path, run: RunDescription,
+                 settings: LogSettings | None = None, *, overwrite: bool = False) -> None:
+        settings = settings or LogSettings()
+        fmu_files = read_fmus(run.fmus)
+        scenario_json = to_json(dict(run.scenario), "scenario")
         if overwrite and being_written(path):
             raise OSError(f"run log {path} is being written by a run that is still going")
         try:
             stream = open(Path(path), "wb" if overwrite else "xb")
         except FileExistsError:
             raise FileExistsError(f"run log {path} already exists") from None
-        self._setup(path, geometry, transform_rate_hz, sample_rate_hz, fsync)
+        self._setup(path, run.geometry, settings)
         library = f"excosim {package_versions()['excosim']}"
         lock_for_writing(stream)
-        self._writer = McapChunkWriter(stream, library=library, background=background)
+        self._writer = McapChunkWriter(stream, library=library, background=settings.background)
         self._table = ChannelTable(self._writer)
         try:
             write_run_description(
-                self._writer, scenario_json=scenario_json, scenario_text=scenario_text,
-                scenario_name=scenario_name, fmus=fmu_files, plant_kind=plant_kind,
-                target_mass_kg=target_mass_kg, geometry=geometry, overrides=list(overrides),
-                derived=derived, arm_coupling=arm_coupling, notes=notes,
+                self._writer, scenario_json=scenario_json, scenario_text=run.scenario_text,
+                scenario_name=run.scenario_name, fmus=fmu_files, plant_kind=run.plant_kind,
+                target_mass_kg=run.target_mass_kg, geometry=run.geometry,
+                overrides=list(run.overrides), derived=run.derived,
+                arm_coupling=run.arm_coupling, notes=run.notes,
             )
-            self._writer.flush(fsync, wait=fsync)
+            self._writer.flush(settings.fsync, wait=settings.fsync)
         except BaseException:
             self._writer.abandon()
             raise
 
     def _setup(self, path: str | Path, geometry: ExcavatorGeometry | None,
-               transform_rate_hz: float, sample_rate_hz: float | None, fsync: bool) -> None:
+               settings: LogSettings) -> None:
         self.path = Path(path)
         self._geometry = geometry
-        self._rate_hz = float(transform_rate_hz)
-        self._sample_rate_hz = sample_rate_hz
-        self._fsync = fsync
+        self._rate_hz = float(settings.transform_rate_hz)
+        self._sample_rate_hz = settings.sample_rate_hz
+        self._fsync = settings.fsync
         self._periods = 0
         self._closed = False
         self._earlier: list[tuple[np.ndarray, np.ndarray]] = []  # newest first
@@ -178,20 +154,19 @@ class RunLog:
     @classmethod
     def continued(cls, stream: BinaryIO, prefix: bytes, *, path: str | Path, periods: int,
                   note: Mapping[str, str] | None, geometry: ExcavatorGeometry | None = None,
-                  transform_rate_hz: float = 25.0, sample_rate_hz: float | None = None,
-                  fsync: bool = False, background: bool = False) -> RunLog:
+                  settings: LogSettings | None = None) -> RunLog:
         """A run log that goes on from `prefix`, the first `periods` periods of a log this class
         wrote (its data section up to the end of period `periods`'s chunk and message indexes:
         orchestrator.runlog.resume), written to `stream` (closed at close()) and flushed with
         the metadata record `excosim.resumed` (`note`; None: none) after it. The next
         log_period is period periods + 1, on the same channels, as the run that wrote the
-        prefix would have written it. geometry, transform_rate_hz, sample_rate_hz, fsync,
-        background: as the run's own (__init__).
+        prefix would have written it. geometry, settings: as the run's own (__init__).
         ValueError when the prefix is not such a data section."""
         self = cls.__new__(cls)
-        self._setup(path, geometry, transform_rate_hz, sample_rate_hz, fsync)
+        settings = settings or LogSettings()
+        self._setup(path, geometry, settings)
         lock_for_writing(stream)
-        self._writer = McapChunkWriter.continued(stream, prefix, background=background)
+        self._writer = McapChunkWriter.continued(stream, prefix, background=settings.background)
         self._table = ChannelTable(self._writer)
         self._periods = periods
         try:
