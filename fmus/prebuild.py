@@ -38,7 +38,7 @@ from fmus.shared_library import LIBRARIES, compile_library, library_sources, sou
 from fmus.shared_library import build_key as library_build_key
 from fmus.toolchain import fmi_headers, gcc, gcc_version
 
-__all__ = ["prebuild"]
+__all__ = ["prebuild", "stale"]
 
 
 def _current(target: Path, key: str, check: str, digest: Callable[[Path], str]) -> bool:
@@ -90,6 +90,24 @@ def prebuild(root: Path = BUILT_DIR, log: Callable[[str], None] = print) -> list
         if stale.is_file():
             stale.unlink()
     return kept
+
+
+def stale(root: Path = BUILT_DIR) -> list[str]:
+    """The artifacts under `root` (as fmi2/Pile.fmu, native/slump.so) that are missing or were
+    built from other sources than this tree's now: what building the package again would
+    compile (`pip install -e .` after an edit of the C sources). No compiler needed."""
+    out = []
+    for fmi_version in FMI_VERSIONS:
+        for name in model_names():
+            record = read_record(fmu_target(root, name, fmi_version))
+            if record is None or record.get("source") != read_model(MODELS_DIR / name,
+                                                                    fmi_version).source:
+                out.append(f"fmi{fmi_version}/{name}.fmu")
+    for name in LIBRARIES:
+        record = read_record(library_target(root, name))
+        if record is None or record.get("source") != source_key(*library_sources(name)):
+            out.append(f"native/{name}.so")
+    return out
 
 
 if __name__ == "__main__":

@@ -22,12 +22,20 @@ import pytest
 import fmus
 from fmus import packaged
 from fmus.builder import MODELS_DIR, source_key
-from fmus.prebuild import prebuild
+from fmus.prebuild import prebuild, stale
 from fmus.shared_library import LIBRARIES, build_library, library_sources
 from fmus.toolchain import BuildError, platform_folder
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "scenarios" / "paper-2020.toml"
+
+
+@pytest.fixture
+def installed() -> None:
+    """The package's build (fmus/_built) is of these sources: else say how to refresh it."""
+    old = stale()
+    assert old == [], (f"fmus/_built is not the build of these sources ({', '.join(old)}): "
+                       "install again (make .venv/.run-installed, or pip install -e .)")
 
 
 @pytest.fixture
@@ -44,7 +52,7 @@ def _nothing_built(cache: Path) -> bool:
     return not list(cache.rglob("*.fmu")) and not list(cache.rglob("*.so"))
 
 
-def test_our_fmus_and_libraries_come_with_the_package_without_gcc(no_gcc):
+def test_our_fmus_and_libraries_come_with_the_package_without_gcc(installed, no_gcc):
     for version in (2, 3):
         for name in fmus.MODELS:
             path = fmus.build(name, fmi_version=version)
@@ -56,7 +64,17 @@ def test_our_fmus_and_libraries_come_with_the_package_without_gcc(no_gcc):
     assert _nothing_built(no_gcc)
 
 
-def test_an_edit_of_the_sources_is_not_the_packaged_build(tmp_path, no_gcc):
+def test_what_a_build_of_the_package_would_compile_again(installed, tmp_path):
+    """fmus.prebuild.stale: nothing in a fresh build, what is missing or of other sources."""
+    root = Path(shutil.copytree(packaged.BUILT_DIR, tmp_path / "_built"))
+    assert stale(root) == []
+    packaged.fmu_target(root, "Pile", 3).with_suffix(".json").unlink()
+    slump = packaged.library_target(root, "slump")
+    packaged.write_record(slump, {**packaged.read_record(slump), "source": "0" * 64})
+    assert stale(root) == ["fmi3/Pile.fmu", "native/slump.so"]
+
+
+def test_an_edit_of_the_sources_is_not_the_packaged_build(installed, tmp_path, no_gcc):
     """The packaged FMU serves the sources it was built from, wherever they are; an edited
     copy needs a build (and so gcc)."""
     copy = Path(shutil.copytree(MODELS_DIR / "Pile", tmp_path / "Pile"))
@@ -71,7 +89,7 @@ def test_an_edit_of_the_sources_is_not_the_packaged_build(tmp_path, no_gcc):
         fmus.build_model(copy)
 
 
-def test_a_damaged_packaged_artifact_is_not_used(tmp_path, monkeypatch):
+def test_a_damaged_packaged_artifact_is_not_used(installed, tmp_path, monkeypatch):
     built = Path(shutil.copytree(packaged.BUILT_DIR, tmp_path / "_built"))
     monkeypatch.setattr(packaged, "BUILT_DIR", built)
     pile = packaged.fmu_target(built, "Pile", 3)
@@ -103,7 +121,7 @@ def test_binaries_go_where_fmpy_looks_for_this_cpu():
             assert f"binaries/{folder}/HydraulicCylinder.so" in archive.namelist()
 
 
-def test_trust_compares_against_the_packaged_fmus_without_gcc(tmp_path, no_gcc):
+def test_trust_compares_against_the_packaged_fmus_without_gcc(installed, tmp_path, no_gcc):
     from orchestrator.cli.trust import trust_problem
     from orchestrator.scenario import load_scenario
 
@@ -133,7 +151,7 @@ def _run_without_gcc(excosim: Path, where: Path) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, timeout=600)
 
 
-def test_the_installed_cli_runs_a_campaign_without_gcc(tmp_path):
+def test_the_installed_cli_runs_a_campaign_without_gcc(installed, tmp_path):
     """The editable install (make .venv/.run-installed: pip install -e .) compiled everything:
     `env -i PATH=<no gcc> excosim run ...` digs and logs."""
     excosim = Path(sys.executable).parent / "excosim"
@@ -145,7 +163,7 @@ def test_the_installed_cli_runs_a_campaign_without_gcc(tmp_path):
 
 
 @pytest.mark.slow
-def test_the_package_build_keeps_what_is_current_and_is_reproducible(tmp_path):
+def test_the_package_build_keeps_what_is_current_and_is_reproducible(installed, tmp_path):
     root = tmp_path / "_built"
     (root / "fmi2").mkdir(parents=True)
     (root / "fmi2" / "Gone.fmu").write_bytes(b"a model that no longer exists")
