@@ -27,47 +27,19 @@ import numpy as np
 from fmus import fast_step
 from fmus.descriptions import model_description
 from fmus.fmu_messages import recording_callbacks_2, recording_logger_3
+from fmus.run_inputs import check_series as _check_series
+from fmus.run_inputs import typed_start_values as _typed_start_values
+from fmus.run_inputs import value_kind
 
 __all__ = ["run_fmpy", "FastSlave", "NativeStep", "fmi_major", "value_kind", "REAL_TYPES"]
 
 REAL_TYPES = ("Real", "Float64")  # the FMI 2.0 and FMI 3.0 names of a double
-_INTEGER = re.compile(r"^(Integer|U?Int(8|16|32|64))$")
 
 
 def fmi_major(description) -> int | None:
     """2 or 3 for an FMI 2.0 / 3.0 model description, None for any other version."""
     major = str(description.fmiVersion).split(".")[0]
     return int(major) if major in ("2", "3") else None
-
-
-def value_kind(type_name: str) -> str | None:
-    """"Real", "Integer" or "Boolean" for an FMI 2.0 or 3.0 variable type (Float64 and Float32
-    are Real, Int8..UInt64 Integer); None for any other (String, Binary, Clock, Enumeration)."""
-    if type_name in ("Real", "Float64", "Float32"):
-        return "Real"
-    if _INTEGER.match(type_name):
-        return "Integer"
-    return "Boolean" if type_name == "Boolean" else None
-
-
-def _check_series(inputs: Mapping[str, np.ndarray]) -> int:
-    lengths = {len(np.asarray(series)) for series in inputs.values()}
-    if len(lengths) != 1 or 0 in lengths:
-        raise ValueError("inputs must be non-empty 1-D series of equal length (one per step)")
-    return lengths.pop()
-
-
-def _typed_start_values(description, start_values: Mapping[str, float]) -> dict:
-    types = {v.name: v.type for v in description.modelVariables}
-    typed = {}
-    for name, value in start_values.items():
-        if name not in types:
-            raise ValueError(f"{description.modelName} has no variable '{name}'")
-        convert = {"Real": float, "Integer": int, "Boolean": bool}.get(value_kind(types[name]))
-        if convert is None:
-            raise ValueError(f"variable '{name}' has unsupported type {types[name]}")
-        typed[name] = convert(value)
-    return typed
 
 
 # The code objects of FastSlave's step functions, one per instance, each named after its
@@ -358,19 +330,25 @@ class FastSlave:
             self.slave.freeFMUState(state)
         self.outputs()  # the output buffer from the restored values, as a step leaves it
 
-    def close(self) -> None:
-        """Terminate and free the instance, unload the binary, remove the unzip folder."""
-        self.native_step = None  # nothing may step the freed instance from C
+    def close(self) -> str | None:
+        """Terminate and free the instance, unload the binary, remove the unzip folder; safe
+        twice. None, or one line when its fmiXTerminate failed though it had logged no error
+        before (after an error FMI lets terminate fail): "pile (Pile): fmi2Terminate failed: .."."""
+        self.native_step, failure = None, None  # nothing may step the freed instance from C
         if self.slave is not None:
             fast_step.free_rollback(getattr(self, "rollback", None))  # before the instance
+            label, before = f"{self.slave.instanceName} ({self.description.modelName})", \
+                self._last_error[0]
             try:
                 self.slave.terminate()
-            except Exception:  # an instance in error state must still be freed
-                pass
+            except Exception as error:  # noqa: BLE001 - the instance must still be freed
+                failure = None if before else f"{label}: fmi{self.fmi_version}Terminate " \
+                    f"failed: {self._last_error[0] or str(error).splitlines()[0]}"
             finally:
                 self.slave.freeInstance()
                 self.slave = None
                 self._remove_unzip_dir()
+        return failure
 
     def _remove_unzip_dir(self) -> None:
         if self._owns_unzip_dir:

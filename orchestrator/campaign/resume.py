@@ -328,14 +328,14 @@ def _continue(source: ResumeSource, output: str | Path | None, overwrite: bool,
         with capture_this_thread(printed), watchdog():  # fmpy prints an FMU's refusal's reason
             plant.restore_state(record["plant"])
     except ValueError as error:
-        plant.close()
+        _close_quietly(plant)
         logged = [line.partition("] ")[2] for line in printed.getvalue().splitlines()
                   if line.startswith(("[ERROR]", "[FATAL]"))]
         why = logged[0] if logged else (str(error.__cause__) if error.__cause__ else "")
         raise ResumeRefused(f"{source.path}: the state after period {k}: {error}"
                             + (f" ({why})" if why else "")) from None
     except BaseException:
-        plant.close()
+        _close_quietly(plant)
         raise
     run = source.run
     ending = "killed (no end record)" if not run.finished else \
@@ -348,7 +348,7 @@ def _continue(source: ResumeSource, output: str | Path | None, overwrite: bool,
                              sample_rate_hz=scenario.log.sample_rate_hz, overwrite=overwrite,
                              background=True)
     except BaseException:
-        plant.close()
+        _close_quietly(plant)
         raise
     log.remember_profiles(_profiles(run, k))
     start = Start(k=k, records=tuple(source.records), t0_s=record["t0_next_s"],
@@ -356,3 +356,12 @@ def _continue(source: ResumeSource, output: str | Path | None, overwrite: bool,
                   strategy=record["strategy"])
     return log, plant, start
 
+
+
+def _close_quietly(plant: Any) -> None:
+    """Close the plant on the way out of a refusal or failure, which stays the reason (a
+    failed terminate, Master.close, would otherwise replace it)."""
+    try:
+        plant.close()
+    except Exception:  # noqa: BLE001, S110 - the caller's exception is what to report
+        pass

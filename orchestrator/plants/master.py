@@ -315,11 +315,11 @@ class Component:
         self._slave.restore_state(data)
         self._refresh()
 
-    def close(self) -> None:
-        """Terminate and free the instance; safe twice. Stepping afterwards is a RuntimeError
-        (not a call into freed memory)."""
-        self._slave.close()
-        self.step, self.native_step = self._closed, None
+    def close(self) -> str | None:
+        """Terminate and free the instance; safe twice (stepping afterwards is a RuntimeError,
+        not a call into freed memory). What failed in its terminate, if anything (FastSlave)."""
+        failure, self.step, self.native_step = self._slave.close(), self._closed, None
+        return failure
 
     def _closed(self, *args) -> None:
         raise RuntimeError(f"{self.name}: the FMU instance is closed")
@@ -382,12 +382,14 @@ class Master:
         return self.components[name]
 
     def close(self) -> None:
-        """Free every instance and remove the extracted FMUs; safe twice."""
-        for component in self.components.values():
-            component.close()
+        """Free every instance and remove the extracted FMUs; safe twice. Then RuntimeError
+        naming each FMU whose terminate failed without an earlier error (FastSlave.close)."""
+        failures = [f for f in (c.close() for c in self.components.values()) if f]
         for folder in self._unzip_dirs.values():
             shutil.rmtree(folder, ignore_errors=True)
         self._unzip_dirs.clear()
+        if failures:
+            raise RuntimeError("; ".join(failures))
 
     def __enter__(self) -> Master:
         return self

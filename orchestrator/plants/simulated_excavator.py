@@ -262,9 +262,11 @@ class SimulatedExcavator(ResumableState):
     def close(self) -> None:
         """Free every FMU instance; safe twice."""
         self._closed = True
-        if self._master is not None:
-            self._master.close()
-        getattr(getattr(self, "_loop", None), "close", lambda: None)()
+        try:
+            if self._master is not None:
+                self._master.close()  # a failed terminate raises once all is freed
+        finally:
+            getattr(getattr(self, "_loop", None), "close", lambda: None)()
 
     def __enter__(self) -> SimulatedExcavator:
         return self

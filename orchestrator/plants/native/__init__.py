@@ -295,6 +295,8 @@ class NativeCoupling:
             self._keep_state(loop.steps, loop.pile_time)
         if code == 1:
             raise self._not_finite()
+        if code == 2:
+            raise self._pile_not_finite(loop.pile_time - self._step_s)
         if code:
             index, call_code = (code >> 16) - 1, code & 0xffff
             if self._errors:
@@ -313,6 +315,15 @@ class NativeCoupling:
                 servo.set_state(state.held)
         self.clock = steps, pile_time
         self.iterations = self._loop.iterations, self._loop.unconverged
+
+    def _pile_not_finite(self, t: float) -> RuntimeError:
+        """The Pile's bucket mass or soil force not finite after its step from t (s, its own
+        clock): named as the pile's, before the master passes it on as the cylinders' load."""
+        pile = self._master["pile"]
+        values = ", ".join(f"{name} {float(value)!r}" for name, value in
+                           zip(("bucket_mass", "F_y", "F_z"), pile.outputs[:3], strict=True))
+        return RuntimeError(f"{_label(pile)}: its output is not finite after its step from "
+                            f"t = {t:.6g} s ({values})")
 
     def _not_finite(self) -> ValueError:
         return ValueError("a cylinder's stroke is not finite: " + ", ".join(

@@ -324,7 +324,9 @@ static void solve3(const double *A, const double *b, double *x) {
 }
 
 /* One communication step k of the stroke reference (module docstring); 0, 1 when a stroke is
- * not finite (nothing done), else an FMU's error code (step_fmu). */
+ * not finite (nothing done), 2 when the Pile's bucket mass or soil force is not finite after
+ * its step (the cylinders not stepped: a NaN would reach them as their load), else an FMU's
+ * error code (step_fmu). */
 static long one_step(Coupling *c, Loop *loop) {
     const double h = loop->h, t = (double)loop->steps * h;
     const double *x_ref = c->x_ref + 3 * c->k, *v_ref = c->v_ref + 3 * c->k;
@@ -349,6 +351,7 @@ static long one_step(Coupling *c, Loop *loop) {
     loop->pile_time += h;
     pile = c->pile_out;
     mass = pile[0], force_y = pile[1], force_z = pile[2];
+    if (!(isfinite(mass) && isfinite(force_y) && isfinite(force_z))) return 2;
     for (i = 0; i < 3; i++) {
         const double *out = c->cylinder_out[i];
         x[i] = out[0], v[i] = out[1], p_A[i] = out[2], p_B[i] = out[3], f[i] = out[4];
@@ -479,7 +482,8 @@ static long one_step(Coupling *c, Loop *loop) {
 }
 
 /* The steps k..n-1 of the stroke reference: 0 when all ran; 1 when a stroke is not finite
- * (nothing of that step done); (1 + FMU index) << 16 | its call's code when an FMU's step or
+ * (nothing of that step done); 2 when the Pile's outputs are not finite (one_step);
+ * (1 + FMU index) << 16 | its call's code when an FMU's step or
  * state call failed (its t stays on the board). steps and pile_time advance as each step
  * completes. */
 EXPORT long coupling_run(Coupling *c, Loop *loop) {
