@@ -26,7 +26,7 @@ from orchestrator.runlog.schemas import (
     cylinder_signals,
 )
 from orchestrator.runlog.units import signal_unit
-from orchestrator.runlog.wire import doubles, field, rows, varint, varint_digits
+from orchestrator.runlog.wire import doubles, field, rows, varint
 from plant_models.plant import JOINTS
 
 MESSAGE_HEADER_FIELDS = (
@@ -211,6 +211,20 @@ class ChunkBuilder:
     def message_indexes(self) -> dict[int, bytes]:
         """Channel id -> its MessageIndex record (entries sorted by log time)."""
         return self._build()[1] if self._groups else {}
+
+
+
+def varint_digits(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Varints of non-negative integers (n,): digits (n, k) uint8, k the longest varint's
+    length (row i's varint is digits[i, :lengths[i]]), and lengths (n,)."""
+    v = np.asarray(values, dtype=np.uint64)
+    # Only as many 7-bit groups as the largest value needs (timestamps: 5 of the 10).
+    count = max(1, min(10, (int(v.max(initial=0)).bit_length() + 6) // 7))
+    groups = np.arange(count, dtype=np.uint64)
+    lengths = 1 + np.sum(v[:, None] >= (np.uint64(1) << (np.uint64(7) * groups[1:])), axis=1)
+    digits = ((v[:, None] >> (np.uint64(7) * groups)) & np.uint64(0x7F)).astype(np.uint8)
+    digits[np.arange(count)[None, :] < (lengths - 1)[:, None]] |= 0x80
+    return digits, lengths.astype(np.int64)
 
 
 def interleave(n: int, groups) -> tuple[bytes, np.ndarray]:

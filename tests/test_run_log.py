@@ -29,11 +29,12 @@ from mcap.stream_reader import StreamReader
 from mcap.writer import Writer
 from mcap_protobuf.decoder import DecoderFactory
 from run_log_files import chunks, cut_inside_chunk
+from run_log_reference import varint_digits
 from scipy.spatial.transform import Rotation
 
 from orchestrator.runlog import LogSettings, RunDescription, RunLog, RunLogError, read_run
 from orchestrator.runlog.scene import FRAMES
-from orchestrator.runlog.wire import varint, varint_digits
+from orchestrator.runlog.wire import varint
 from plant_models import presets
 from plant_models.geometry import forward_kinematics
 from plant_models.plant import JOINTS, PeriodMeasurement

@@ -1,8 +1,7 @@
 """Byte-level functions for encoding many protobuf messages or MCAP records at once with numpy.
 
-Rows of bytes are (n, w) uint8 arrays: row i is message i. Messages whose sizes differ (only
-through varints, e.g. timestamps) are encoded in groups of equal size (ChunkBuilder.add_grouped
-puts them in order). Protobuf wire format: https://protobuf.dev/programming-guides/encoding/
+Rows of bytes are (n, w) uint8 arrays: row i is message i (the pile scene's point lists, the
+rows' constant parts; rows.c writes the sample and /tf records themselves). Protobuf wire format: https://protobuf.dev/programming-guides/encoding/
 """
 
 from __future__ import annotations
@@ -10,7 +9,6 @@ from __future__ import annotations
 import numpy as np
 
 _SMALL_VARINTS = [bytes((value,)) for value in range(0x80)]
-_MAX_VARINT_BYTES = 10  # a 64-bit value needs at most 10 groups of 7 bits
 
 
 def varint(value: int) -> bytes:
@@ -23,19 +21,6 @@ def varint(value: int) -> bytes:
         value >>= 7
     out.append(value)
     return bytes(out)
-
-
-def varint_digits(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Varints of non-negative integers (n,): digits (n, k) uint8, k the longest varint's
-    length (row i's varint is digits[i, :lengths[i]]), and lengths (n,)."""
-    v = np.asarray(values, dtype=np.uint64)
-    # Only as many 7-bit groups as the largest value needs (timestamps: 5 of the 10).
-    count = max(1, min(_MAX_VARINT_BYTES, (int(v.max(initial=0)).bit_length() + 6) // 7))
-    groups = np.arange(count, dtype=np.uint64)
-    lengths = 1 + np.sum(v[:, None] >= (np.uint64(1) << (np.uint64(7) * groups[1:])), axis=1)
-    digits = ((v[:, None] >> (np.uint64(7) * groups)) & np.uint64(0x7F)).astype(np.uint8)
-    digits[np.arange(count)[None, :] < (lengths - 1)[:, None]] |= 0x80
-    return digits, lengths.astype(np.int64)
 
 
 def rows(n: int, segments) -> np.ndarray:
@@ -61,9 +46,3 @@ def field(number: int, payload: bytes) -> bytes:
     return bytes([number << 3 | 2]) + varint(len(payload)) + payload
 
 
-def strided(block: np.ndarray, offset: int, dtype: str, shape: tuple, strides: tuple
-            ) -> np.ndarray:
-    """A writable view of the bytes of `block` (a uint8 array) as `dtype` at byte `offset` with
-    byte `strides`: one numpy call writes a field of every row (or several equally spaced
-    fields). Such views are unaligned; numpy copies into them about as fast as aligned ones."""
-    return np.ndarray(shape, dtype=dtype, buffer=block, offset=offset, strides=strides)

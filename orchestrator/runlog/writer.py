@@ -312,12 +312,7 @@ class RunLog:
         channel = self._table.foxglove("/tf", FrameTransforms)
         first = self._writer.reserve_sequence(channel, len(log_ns))
         transforms = scene.link_transforms(self._geometry, joints)
-        records = scene.transform_records(transforms, log_ns, channel, first)
-        if records is None:  # no C library: encoded here with numpy, to the same bytes
-            chunk.add_grouped(channel, first, log_ns,
-                              scene.encode_frame_transforms(transforms, log_ns))
-            return
-        for index, width, rows in records:
+        for index, width, rows in scene.transform_records(transforms, log_ns, channel, first):
             chunk.add_rows(channel, log_ns[index], width, rows)
 
     def attach_live(self, view) -> None:
