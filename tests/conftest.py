@@ -23,3 +23,41 @@ def lab_hil_run(tmp_path_factory):
     from lab_runs import emulated_lab_run
 
     return emulated_lab_run(tmp_path_factory.mktemp("lab-hil") / "lab.mcap")
+
+
+# The slow set (pytest -m slow; `make test` leaves it out, `make test-all` and CI run it): what
+# took most of the suite's time, measured with `pytest --durations=250` on 2 cores, seconds in
+# brackets. Whole modules, or (module, test name prefix).
+SLOW_MODULES = {
+    "test_lab_faults.py",        # real-time faults on the CAN link (50)
+    "test_lab_hil.py",           # the emulated lab run in real time (about 40, shared)
+    "test_lab_log_tools.py",     # its log (the same run)
+    "test_lab_cli.py",           # a master and the standalone emulator (10)
+    "test_readme.py",            # every README block, campaigns included (49)
+    "test_cylinder_reference.py",  # the cylinder against scipy's Radau (45)
+    "test_sweep.py",             # sweeps on local pools and Dask (43)
+    "test_packaged_build.py",    # wheels and fresh venvs (19)
+    "test_run_isolation.py",     # crashing FMUs in supervised children (12)
+    "test_examples.py",          # every numbered example (11)
+    "test_scenario_mutations.py",  # generated scenarios, each dug (11)
+    "test_run_log_damage.py",    # decompression bombs and damaged chunks in every command (11)
+}
+SLOW_TESTS = {
+    ("test_foxglove_layout.py", "test_each_machines_"): "lab (emulated",  # the lab run (40)
+    ("test_log_records.py", "test_a_bad_period_record_is_one_line_in_every_command"): "",  # (30)
+    ("test_cli_conventions.py", "test_ctrl_c_"): "",  # runs signalled in children (15 in all)
+    ("test_cli_conventions.py", "test_sigterm_"): "",
+    ("test_cli_conventions.py", "test_two_runs_started_together"): "",
+    ("test_resume.py", "test_a_run_killed_with_sigkill"): "",  # (6)
+    ("test_fmu_conformance.py", "test_no_call_sequence_crashes"): "",  # (10)
+}
+
+
+def pytest_collection_modifyitems(items):
+    slow = pytest.mark.slow
+    for item in items:
+        module = item.path.name
+        if module in SLOW_MODULES or any(
+                module == name and item.name.startswith(prefix) and marker in item.name
+                for (name, prefix), marker in SLOW_TESTS.items()):
+            item.add_marker(slow)
