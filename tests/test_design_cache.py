@@ -71,16 +71,14 @@ def test_a_remembered_servo_design_is_the_computed_one(cache):
 
 
 def _imports_after(args: list[str], cwd: Path) -> set[str]:
-    code = ("import sys, atexit\n"
-            "atexit.register(lambda: print('MODULES', sorted({m.split('.')[0] for m in "
-            "sys.modules}), file=sys.stderr))\n"
-            f"sys.argv = ['excosim', *{args!r}]\n"
-            "from orchestrator.cli.app import main\nmain()\n")
-    done = subprocess.run([sys.executable, "-c", code], cwd=cwd, capture_output=True,
-                          text=True, env={**os.environ}, timeout=300)
-    assert done.returncode == 0, done.stderr
-    line = next(line for line in done.stderr.splitlines() if line.startswith("MODULES"))
-    return set(eval(line.removeprefix("MODULES ")))  # noqa: S307 - our own printed list
+    """The top-level packages `excosim ARGS` imports, as python -X importtime reports them."""
+    code = f"import sys; sys.argv = ['excosim', *{args!r}]\n" \
+        "from orchestrator.cli.app import main\nmain()\n"
+    done = subprocess.run([sys.executable, "-X", "importtime", "-c", code], cwd=cwd,
+                          capture_output=True, text=True, env={**os.environ}, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    return {line.rsplit("|", 1)[1].strip().split(".")[0]
+            for line in done.stderr.splitlines() if line.startswith("import time:")}
 
 
 def test_help_imports_neither_numpy_nor_control(tmp_path):
