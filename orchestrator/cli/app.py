@@ -1,20 +1,21 @@
 """The `excosim` command line.
 
 Every user mistake ends in one line on stderr and exit status 2; a runtime failure in one line and
-exit status 1; Ctrl-C in one line and 130 (SIGTERM during `run`: 143, orchestrator.cli.signals).
+exit status 1; Ctrl-C in one line and 130, SIGTERM in one line and 143 (orchestrator.cli.signals).
 No traceback reaches a user. `-h`/`--help` on every command, `--version`, `excosim completion
 SHELL` (orchestrator.cli.conventions).
 """
 
 from __future__ import annotations
 
+import signal
 import sys
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
-from orchestrator.cli import export_command, plot, run_command
+from orchestrator.cli import export_command, plot, run_command, signals
 from orchestrator.cli.conventions import (
     HELP_OPTIONS,
     PROG,
@@ -23,6 +24,7 @@ from orchestrator.cli.conventions import (
     completion,
     enable_completion,
     fail,
+    failures,
     version,
 )
 from orchestrator.cli.layout import layout_command
@@ -316,15 +318,34 @@ app.command("completion", cls=Command)(completion)
 
 
 def main() -> None:
-    """Console-script entry point."""
-    enable_completion()
+    """Console-script entry point. A Ctrl-C or SIGTERM at any moment ends in one line and exit
+    status 130 or 143 (orchestrator.cli.signals: the phases): a command's own line, else
+    "interrupted" or "terminated (SIGTERM)" here (typer turns a Ctrl-C while it parses the
+    command line into a silent exit 130)."""
+    signals.in_command()
+    said, status = failures(), 1  # 1: an exception that is not a stop (Python shows it)
     try:
+        enable_completion()
         # The name, not argv[0]: `python -c`/`-m` would show up in usage lines and would change
         # the variable the completion scripts set.
         app(prog_name=PROG)
-    except KeyboardInterrupt:  # outside a command (typer turns one inside into exit 130)
-        fail("interrupted")
-        sys.exit(130)
+        status = 0
+    except SystemExit as done:
+        status = done.code if isinstance(done.code, int) else 0 if done.code is None else 1
+        stop = {signals.INTERRUPTED_EXIT: signal.SIGINT,
+                signals.TERMINATED_EXIT: signal.SIGTERM}.get(status)
+        if stop is not None and failures() == said:
+            fail(signals.stop_line(stop))
+        raise
+    except BaseException as error:  # a stop outside a command, or an error it caused
+        stop = signals.stopped_by(error)
+        if stop is None:
+            raise
+        fail(signals.stop_line(stop))
+        status = 128 + stop
+        sys.exit(status)
+    finally:
+        signals.at_exit(status)
 
 
 if __name__ == "__main__":

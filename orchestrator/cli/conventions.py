@@ -26,9 +26,18 @@ COMPLETE_VAR = "_EXCOSIM_COMPLETE"  # the variable the completion scripts set (c
 _err = Console(stderr=True, highlight=False)
 
 
+_FAILED = [0]  # lines printed by fail(): main() tells a stop that said nothing from one that did
+
+
 def fail(message: str) -> None:
     """Print `excosim: message` as one line on stderr (never wrapped into several)."""
     _err.print(f"{PROG}: {message}", markup=False, soft_wrap=True)
+    _FAILED[0] += 1
+
+
+def failures() -> int:
+    """How many lines fail() has printed in this process."""
+    return _FAILED[0]
 
 
 class _Argument(TyperArgument):
