@@ -83,7 +83,7 @@ class ExcavatorDevice:
     def lease_valid(self, now: float) -> bool:
         """Whether the master's heartbeat arrived within the consumer time."""
         at = self._master_heartbeat_at
-        return at is not None and now - at <= self.settings.heartbeat_timeout_s
+        return at is not None and now - at <= self.settings.timeout("heartbeat_timeout_s")
 
     # ---- output --------------------------------------------------------------------------------
 
@@ -260,7 +260,7 @@ class ExcavatorDevice:
         if self.state in MOVING and not self.lease_valid(now):
             self._enter(State.HOLD, Fault.LEASE_LOST)
         if self.state == State.STREAMING and self.cycles_done < self.cycles \
-                and now - self._last_setpoint_at > self.settings.command_timeout_s:
+                and now - self._last_setpoint_at > self.settings.timeout("command_timeout_s"):
             self._enter(State.HOLD, Fault.COMMAND_TIMEOUT)
         if self.state == State.WEIGHING and self._weigh_pending and not self.load.frozen:
             self._weigh_pending = False

@@ -156,11 +156,12 @@ class LabExcavator:
         def acked() -> bool:
             status = self.view.status
             return status is not None and int(status["AckSeq"]) == seq
-        self._wait_for(acked, self.settings.reply_timeout_s, f"acknowledgement of {cmd.name}")
+        self._wait_for(acked, self.settings.timeout("reply_timeout_s"),
+                       f"acknowledgement of {cmd.name}")
         state = self.view.state
         if state not in expect and cmd == Cmd.DUMP and state == State.DUMPING:
             self._wait_for(lambda: self.view.state != State.DUMPING,
-                           self.settings.reply_timeout_s, "end of DUMP")
+                           self.settings.timeout("reply_timeout_s"), "end of DUMP")
             state = self.view.state
         if state not in expect:
             self._abort(f"the device refused {cmd.name} in state {state.name}")
@@ -179,7 +180,7 @@ class LabExcavator:
         self._connected = True
         self._wait_for(lambda: self.view.heartbeat_at is not None and self.view.status
                        is not None and self.view.pose_rad is not None,
-                       settings.connect_timeout_s,
+                       settings.timeout("connect_timeout_s"),
                        f"device on {settings.interface} channel {settings.channel!r} (no "
                        "heartbeat, status and pose)", check=False)
         problem = self.view.problem(self.clock.now(), False)
@@ -188,7 +189,8 @@ class LabExcavator:
         if self.view.state != State.DISARMED:
             self._command(Cmd.DISARM, (State.DISARMED,))
         # Arm only once the device hears this master: it refuses ARM without a valid lease.
-        self._wait_for(lambda: bool(self.view.status["LeaseValid"]), settings.connect_timeout_s,
+        self._wait_for(lambda: bool(self.view.status["LeaseValid"]),
+                       settings.timeout("connect_timeout_s"),
                        "lease: the device does not report the master's heartbeat")
         self._command(Cmd.ARM, (State.ARMED,), argument=int(self.view.status["Challenge"]))
         self._master_state = MasterState.RUNNING
@@ -256,7 +258,8 @@ class LabExcavator:
             self._receive(deadline, True)
             if i - view.feedback.newest > lead:  # the device lags: hold the stream back
                 self._wait_for(lambda i=i: i - view.feedback.newest <= lead,
-                               self.settings.feedback_timeout_s, "joint feedback (the device "
+                               self.settings.timeout("feedback_timeout_s"), "joint feedback "
+                               "(the device "
                                f"lags more than {lead} cycles)", streaming=True)
             sent_at, last_wall = clock.now(), time.perf_counter()
             if i == 0:
@@ -278,15 +281,16 @@ class LabExcavator:
         self.cycles_sent += len(stream.t_s)
         self.stream_wall_s += last_wall - first_wall
         last = len(stream.t_s) - 1
-        self._wait_for(lambda: view.feedback.newest >= last, self.settings.feedback_timeout_s,
-                       "feedback of the last cycle", streaming=True)
+        self._wait_for(lambda: view.feedback.newest >= last,
+                       self.settings.timeout("feedback_timeout_s"), "feedback of the last cycle",
+                       streaming=True)
 
     def _weighing(self, k: int, before: dict | None) -> float:
         def fresh() -> bool:
             load = self.view.load_cell
             return load is not None and int(load["Period"]) == k and bool(load["Valid"]) and (
                 before is None or load["Sample"] != before["Sample"])
-        timeout = self.settings.load_cell_timeout_s
+        timeout = self.settings.timeout("load_cell_timeout_s")
         end = self.clock.now() + timeout
         while not fresh():
             if self.clock.now() >= end:
@@ -302,19 +306,40 @@ class LabExcavator:
     # ---- stopping ------------------------------------------------------------------------------
 
     def _abort(self, reason: str) -> None:
-        """Stop streaming, command HOLD, raise LabStop with what the period measured."""
-        self._stopped = reason
+        """Stop streaming, command HOLD, raise LabStop with what the period measured. A stop
+        of the device's own (an emergency stop, a fault) is the reason whenever the device
+        reports one: a timeout of the master's may be only its effect, seen first (the
+        device's status still queued, or its thread late), so the acknowledgement of the HOLD
+        is awaited (at most the reply timeout) and says what the device had."""
         self._master_state = MasterState.STOPPED
         if self._connected:
             try:
                 self._seq = self._seq % 255 + 1
                 self._send("Command", Cmd=int(Cmd.HOLD), Seq=self._seq, Period=self._period)
+                own = self.view.own_stop()
+                if own is None:
+                    self._await_ack(self._seq)
+                    own = self.view.own_stop()
+                if own is not None and own != reason:
+                    reason = f"{own}; the master had stopped for: {reason}"
             except LabLinkError:
                 pass  # the bus is gone: the device's command timeout and lease hold it
+        self._stopped = reason
         partial = None
         if self._stream is not None and self.view.feedback is not None:
             partial = period_measurement(self._stream, self.view, self._log, math.nan)
         raise LabStop(reason, partial)
+
+    def _await_ack(self, seq: int) -> None:
+        """Take in frames until the device acknowledges command `seq` or the reply timeout
+        passes (no check: the master is stopping already)."""
+        end = self.clock.now() + self.settings.timeout("reply_timeout_s")
+        while self.clock.now() < end:
+            status = self.view.status
+            if status is not None and int(status["AckSeq"]) == seq:
+                return
+            self._receive(min(end, self.clock.now() + self.settings.frame_period_s), False,
+                          check=False)
 
     def close(self) -> None:
         """Disarm (AllStop if a stream was interrupted), stop the heartbeat, shut the bus down,

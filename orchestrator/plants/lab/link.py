@@ -109,7 +109,7 @@ class DeviceView:
     def _deadlines(self, streaming: bool) -> list:
         """(expiry time, message(now)) of the heartbeat and (streaming) feedback timeouts."""
         settings = self.settings
-        hb = settings.heartbeat_timeout_s
+        hb = settings.timeout("heartbeat_timeout_s")
         if self.heartbeat_at is None:
             out = [(-float("inf"), lambda now: f"device heartbeat lost (none received; "
                     f"consumer time {hb:g} s)")]
@@ -117,16 +117,26 @@ class DeviceView:
             out = [(self.heartbeat_at + hb, lambda now: f"device heartbeat lost (last "
                     f"{now - self.heartbeat_at:.3f} s ago; consumer time {hb:g} s)")]
         if streaming and self.feedback is not None:
-            feedback, timeout = self.feedback, settings.feedback_timeout_s
+            feedback, timeout = self.feedback, settings.timeout("feedback_timeout_s")
             last = feedback.arrived_at.get(feedback.newest, self._period_started_at)
             lag = (self.sent_index - feedback.newest) * settings.frame_period_s \
                 if feedback.newest >= 0 else 0.0
-            # Late by arrival at last + timeout; behind the stream once the lag exceeds it.
-            at = last + timeout if lag <= timeout else -float("inf")
+            # Late by arrival at last + timeout; behind the stream once the lag exceeds the
+            # timeout as set (frames: the 4-bit counter's bound, not scaled).
+            at = last + timeout if lag <= settings.feedback_timeout_s else -float("inf")
             out.append((at, lambda now: f"joint feedback {max(now - last, lag):.3f} s old "
                         f"(timeout {timeout:g} s): newest for cycle {feedback.newest} of "
                         f"{self.sent_index} sent"))
         return out
+
+    def own_stop(self) -> str | None:
+        """The stop the device reports of its own (an emergency stop, or a hold for a fault of
+        its own), None for none or for the hold the master commanded (MASTER_HOLD)."""
+        status = self.status
+        if status is None or not (status["EStop"] or int(status["State"]) == State.ESTOP
+                                  or int(status["Fault"]) not in (Fault.NONE, Fault.MASTER_HOLD)):
+            return None
+        return self.problem(-float("inf"), False)
 
     def device_lost_setpoints(self) -> int:
         """Setpoint cycles the device reported missing in this period (HeartbeatDevice)."""

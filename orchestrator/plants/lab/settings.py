@@ -2,7 +2,7 @@
 
 Every duration is machine time in s: the time of the excavator and its controller. The time
 scale maps it to wall time, wall = machine / time_scale (1: real time, for hardware; above 1 an
-emulated run goes faster, every rate and timeout with it). The defaults and why:
+emulated run goes faster, every rate with it; timeouts: below). The defaults and why:
 
     stream_rate_hz 100       the reference stream (10 ms): the lab trajectories move at most
                              about 33 deg/s, so a frame lost costs 0.3 deg of extrapolation
@@ -18,6 +18,16 @@ emulated run goes faster, every rate and timeout with it). The defaults and why:
     reply_timeout_s 0.5      a command's acknowledgement (DeviceStatus.AckSeq)
     load_cell_timeout_s 2.0  a fresh, valid load-cell reading after PERIOD_END
     connect_timeout_s 10.0   the device's first heartbeat
+
+Timeouts scale with the time scale (`timeout`): above 1, each is the time scale times longer in
+machine time, so that in wall time it stays what it is in real time. A timeout guards against
+the link's failures, and how long a thread of an ordinary OS may be held up (by the scheduler,
+a loaded machine, the interpreter lock the emulated device and the master share) is wall time:
+at a time scale of 20 the command timeout would otherwise be 2.5 ms of wall time, which a
+loaded machine misses in a run without any fault. Rates and periods (the stream, the
+heartbeats) keep their machine values, and so do the frame counts the 4-bit counter needs: the
+stream's lead over the feedback and the lag that stops it (driver.max_lead_cycles,
+link.DeviceView) are counted from the timeouts as set.
 """
 
 from __future__ import annotations
@@ -119,3 +129,10 @@ class LabSettings:
     def wall(self, machine_s: float) -> float:
         """Wall-clock seconds of `machine_s` machine seconds."""
         return machine_s / self.time_scale
+
+    def timeout(self, name: str) -> float:
+        """The timeout `name` (e.g. "command_timeout_s") in machine s as the link applies it:
+        as set, times the time scale above 1 (module docstring)."""
+        if not name.endswith("_timeout_s"):
+            raise ValueError(f"{name!r} is not a timeout of LabSettings")
+        return getattr(self, name) * max(1.0, self.time_scale)
