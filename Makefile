@@ -13,7 +13,7 @@ export OPENBLAS_NUM_THREADS := 1
 export OMP_NUM_THREADS := 1
 export MKL_NUM_THREADS := 1
 
-.PHONY: run test test-all bench lint lock clean
+.PHONY: run test test-all bench lint docs lock clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -56,12 +56,17 @@ bench: $(TEST_STAMP)
 lint: $(TEST_STAMP)
 	$(VENV)/bin/ruff check .
 
+# The documentation site (docs/, mkdocs.yml) into site/; the reference pages are generated from
+# the code (docs/gen_reference.py) as it builds. Warnings are errors, as in the suite.
+docs: $(TEST_STAMP)
+	$(VENV)/bin/mkdocs build --strict
+
 # Refresh the lock to the newest versions that pyproject.toml's ranges allow (README: "The lock").
 UV_VERSION := 0.13.8
 lock:
 	$(PYTHON) -m venv .venv-lock
 	.venv-lock/bin/python -m pip install --quiet uv==$(UV_VERSION)
-	.venv-lock/bin/uv pip compile --quiet --upgrade --generate-hashes --extra test \
+	.venv-lock/bin/uv pip compile --quiet --upgrade --generate-hashes --extra test --extra docs \
 	    pyproject.toml requirements/build.in -o requirements/test.txt
 	.venv-lock/bin/uv pip compile --quiet --upgrade --generate-hashes -c requirements/test.txt \
 	    pyproject.toml requirements/build.in -o requirements/run.txt

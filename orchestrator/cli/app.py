@@ -281,7 +281,8 @@ def emulate(
                          ] = "socketcan",
     channel: Annotated[str, typer.Option("--channel", metavar="NAME",
                                          help="Bus channel, e.g. vcan0 or can0.")] = "vcan0",
-    bitrate: Annotated[int, typer.Option("--bitrate", metavar="BIT/S")] = 500_000,
+    bitrate: Annotated[int, typer.Option("--bitrate", metavar="BIT/S",
+                                         help="Bus bit rate, bit/s.")] = 500_000,
     scenario: Annotated[
         Path | None, typer.Option("--scenario", metavar="FILE.toml", help="The machine to "
                                   "emulate and its plant.lab link (default: the lab preset).")
