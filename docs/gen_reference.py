@@ -87,7 +87,23 @@ def _range(field) -> str:
     for candidate in (annotation, *typing.get_args(annotation)):
         if typing.get_origin(candidate) is typing.Literal:
             parts.append("one of " + ", ".join(f'"{a}"' for a in typing.get_args(candidate)))
+    inner = [meta for arg in typing.get_args(annotation)
+             if typing.get_origin(arg) is typing.Annotated for meta in arg.__metadata__]
+    for item in (*field.metadata, *inner):  # orchestrator.scenario.values.numbers: its checks
+        closure = _closure(getattr(item, "func", None))
+        if "count" in closure:
+            parts.append(" ".join(filter(None, (
+                f"{closure['count']} numbers", closure.get("requirement"),
+                "strictly increasing" if closure.get("increasing") else ""))))
     return ", ".join(parts)
+
+
+def _closure(function) -> dict:
+    if function is None or not getattr(function, "__closure__", None):
+        return {}
+    return {name: cell.cell_contents
+            for name, cell in zip(function.__code__.co_freevars, function.__closure__,
+                                  strict=True)}
 
 
 def _flat(data: dict, prefix: str = "") -> dict[str, object]:
