@@ -61,7 +61,7 @@ lint: $(TEST_STAMP)
 docs: $(TEST_STAMP)
 	$(VENV)/bin/mkdocs build --strict
 
-# Refresh the lock to the newest versions that pyproject.toml's ranges allow (README: "The lock").
+# Refresh the lock to the newest versions that pyproject.toml's ranges allow (docs/guide/development.md: "The lock").
 UV_VERSION := 0.13.8
 lock:
 	$(PYTHON) -m venv .venv-lock

@@ -3,7 +3,7 @@ with names and units of its own, exported as an FMI 2.0 co-simulation FMU by
 
     .venv/bin/python -m pythonfmu build -f examples/pythonfmu_cylinder.py -d build
 
-(build/PyCylinder.fmu); README "Plant-model substitution" runs it in the bucket role, and
+(build/PyCylinder.fmu); docs/guide/substitution.md runs it in the bucket role, and
 tests/test_pythonfmu_cylinder.py builds it at test time.
 
 A first-order velocity servo with a valve that slows under load and end stops at 0 and the

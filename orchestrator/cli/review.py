@@ -286,5 +286,5 @@ def compare_grid(names: list[str], summaries: list[dict[str, Any]]) -> tables.Gr
                        "(the paper's ±3 kg at 30 kg); duration: planned trajectory per period; "
                        "peak jerk: largest |jerk| of any joint in any period; productivity: t "
                        "per hour of digging; fill: mean fill factor; energy, throttled, power: "
-                       "the cylinders' hydraulic supply (– where not measured; README: "
-                       "Productivity figures)")
+                       "the cylinders' hydraulic supply (– where not measured; "
+                       "docs/guide/review.md, Productivity figures)")
