@@ -6,7 +6,8 @@
 - fit.csv: per period the measured (weighed) mass, the start's and the calibrated plant's mass
   (kg), and the tracking RMS against the measured joint angles of both (deg), with the log's
   own tracking RMS (measured vs reference, deg);
-- fit.png: measured vs calibrated (and start) masses per period, and one period's joint angles.
+- fit.png: measured vs calibrated (and start) masses per period, and one period's joint angles
+  with their residuals.
 """
 
 from __future__ import annotations
@@ -69,19 +70,21 @@ def write_csv(out_dir: Path, rows: list[dict]) -> Path:
 
 
 def write_figure(out_dir: Path, measured: MeasuredRun, start: Fit, calibrated: Fit) -> Path:
-    """Masses per period, and the joints of the period the start fitted worst."""
+    """Masses per period; the joint angles of the period the start fitted worst, and their
+    residuals (simulated - measured) at the start and calibrated."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     ks = [p.k for p in measured.periods]
-    figure, (masses, joints) = plt.subplots(1, 2, figsize=(11, 4))
+    figure, (masses, joints, residuals) = plt.subplots(1, 3, figsize=(15, 4))
     masses.plot(ks, [p.mass_kg for p in measured.periods], "ko-", label="measured")
     if start.masses_kg:
         masses.plot(ks, start.masses_kg, "s--", color="0.6", label="start")
     masses.plot(ks, calibrated.masses_kg, "x-", color="C3", label="calibrated")
-    masses.set(xlabel="period k", ylabel="weighed mass (kg)", title="Masses per period")
+    masses.set(xlabel="period k", ylabel="weighed mass (kg)", title="Masses per period",
+               xticks=ks)
     masses.legend()
     worst = int(np.argmax(start.tracking_rms_deg)) if start.tracking_rms_deg else 0
     period = measured.periods[worst]
@@ -89,12 +92,20 @@ def write_figure(out_dir: Path, measured: MeasuredRun, start: Fit, calibrated: F
         colour = f"C{j}"
         joints.plot(period.t_s, np.degrees(period.measured_rad[:, j]), color=colour,
                     label=f"{joint} measured")
-        if calibrated.periods:
-            joints.plot(period.t_s, np.degrees(calibrated.periods[worst].joints_rad[:, j]),
-                        "--", color=colour, label=f"{joint} calibrated")
+        for fit, style, name in ((calibrated, "--", "calibrated"), (start, ":", "start")):
+            if len(fit.periods) > worst:
+                simulated = np.degrees(fit.periods[worst].joints_rad[:, j])
+                if name == "calibrated":
+                    joints.plot(period.t_s, simulated, style, color=colour,
+                                label=f"{joint} {name}")
+                residuals.plot(period.t_s, simulated - np.degrees(period.measured_rad[:, j]),
+                               style, color=colour, label=f"{joint} {name}")
     joints.set(xlabel="t (s)", ylabel="joint angle (deg)",
                title=f"Period {period.k}: joint angles")
     joints.legend(fontsize="small", ncol=2)
+    residuals.set(xlabel="t (s)", ylabel="simulated - measured (deg)",
+                  title=f"Period {period.k}: joint residuals")
+    residuals.legend(fontsize="small", ncol=2)
     figure.tight_layout()
     path = out_dir / FIGURE_FILE
     figure.savefig(path, dpi=110)
