@@ -1,6 +1,7 @@
 """`excosim sweep SWEEP.toml`: many campaigns over a sweep file's axes, on a local pool or a Dask
 cluster, with a progress bar over runs, a summary table (Parquet, CSV), an overview plot and
-resume (orchestrator.sweep).
+resume (orchestrator.sweep); with --sensitivity, the Sobol indices of every summary figure to the
+axes of a saltelli design (orchestrator.sweep.sensitivity).
 
 Exit status: 0 when every run dug its campaign; 1 when some run failed (its row says why, the
 others went on); 2 for a mistake found before any run (the sweep file, a scenario value, an
@@ -57,6 +58,10 @@ def sweep(
                      ] = False,
     trust: Annotated[bool, typer.Option("--trust", help="Run FMU files that differ from FMUs "
                                         "built from this version's sources.")] = False,
+    sensitivity: Annotated[bool, typer.Option(
+        "--sensitivity", help="Also compute first-order and total Sobol indices (with 95 % "
+        "intervals) of each summary figure to the axes of the sweep's saltelli design: a "
+        "table, sensitivity.csv/.json and sensitivity.png in the folder.")] = False,
 ) -> None:
     """Run many campaigns over a sweep file's axes; summarise them in one table."""
     if workers is not None and scheduler is not None:
@@ -66,7 +71,7 @@ def sweep(
     with terminate_like_ctrl_c():
         try:
             code = _sweep(sweep_file, output, workers, scheduler, recycle_after, as_json,
-                          quiet, trust)
+                          quiet, trust, sensitivity)
         except Terminated:
             code = _stopped("terminated (SIGTERM)", TERMINATED_EXIT)
         except KeyboardInterrupt:
@@ -94,12 +99,16 @@ def _exit(message: str, code: int) -> None:
 
 
 def _sweep(sweep_file: Path, output: Path | None, workers: int | None, scheduler: str | None,
-           recycle_after: int, as_json: bool, quiet: bool, trust: bool) -> int:
+           recycle_after: int, as_json: bool, quiet: bool, trust: bool,
+           sensitivity: bool = False) -> int:
     from orchestrator.sweep import SchedulerUnreachable, SweepError, load_sweep, prepare, run_sweep
+    from orchestrator.sweep.sensitivity import sampled_axes
 
     _WHERE.clear()
     try:
         spec = load_sweep(sweep_file)
+        if sensitivity:
+            sampled_axes(spec)
         out_dir = output or Path("runs") / (re.sub(r"[^A-Za-z0-9_.-]+", "-", spec.name)
                                              .strip("-.") or "sweep")
         problem = _folder_problem(out_dir, spec)
@@ -137,14 +146,62 @@ def _sweep(sweep_file: Path, output: Path | None, workers: int | None, scheduler
             _exit(str(error), 2)
         except OSError as error:
             _exit(f"{out_dir}: {error.strerror or error}", 2)
+    indices = _sensitivity(result) if sensitivity else None
     if as_json:
-        print(json_text(_report(result)))
+        print(json_text({**_report(result), **({"sensitivity": indices} if sensitivity else {})}))
     elif not quiet:
         _print_table(result)
+        if indices is not None:
+            _print_indices(indices, result.out_dir)
     return 1 if result.failed else 0
 
 
-def _folder_problem(out_dir: Path, spec) -> str | None:
+def _sensitivity(result) -> list[dict[str, Any]]:
+    """The Sobol indices of the sweep's figures, written beside its summary."""
+    from orchestrator.sweep.sensitivity import (
+        SENSITIVITY,
+        sensitivity,
+        sensitivity_plot,
+        write_sensitivity,
+    )
+
+    records = sensitivity(result.frame, result.sweep)
+    write_sensitivity(records, result.out_dir)
+    sensitivity_plot(records, result.out_dir / f"{SENSITIVITY}.png")
+    return records
+
+
+def _print_indices(records: list[dict[str, Any]], out_dir: Path) -> None:
+    out = Console(highlight=False)
+    out.print("\nSobol indices (S1 first-order, ST total; +- the 95 % interval's half-width)",
+              markup=False)
+    skipped: dict[str, str] = {}
+    for condition in dict.fromkeys(json.dumps(r["condition"]) for r in records):
+        chosen = [r for r in records if json.dumps(r["condition"]) == condition]
+        if condition != "{}":
+            out.print(f"\n{condition}", markup=False)
+        for figure in dict.fromkeys(r["figure"] for r in chosen):
+            rows = [r for r in chosen if r["figure"] == figure]
+            if rows[0]["S1"] is None:
+                skipped[figure] = rows[0]["note"]
+                continue
+            out.print(f"  {figure}", markup=False)
+            for r in rows:
+                out.print(f"    {r['axis'][-40:]:>40}  S1 {_index(r, 'S1')}  "
+                          f"ST {_index(r, 'ST')}", markup=False, soft_wrap=True)
+    if skipped:
+        out.print("  no indices: " + ", ".join(f"{f} ({n})" for f, n in skipped.items()),
+                  markup=False, soft_wrap=True)
+    out.print(f"indices: {out_dir / 'sensitivity.csv'}, {out_dir / 'sensitivity.png'}",
+              markup=False, soft_wrap=True)
+
+
+def _index(record: dict[str, Any], key: str) -> str:
+    value, conf = record[key], record[f"{key}_conf"]
+    return f"{value:6.3f} +- {conf:5.3f}" if conf is not None else f"{value:6.3f}         "
+
+
+def _folder_problem(out_dir: Path, spec, command: str = "sweep") -> str | None:
     """Why out_dir cannot hold this sweep's runs, or None (new, empty, or a sweep's of the same
     name: an edited sweep file goes on there, and only runs whose logged scenario is still the
     planned one are skipped)."""
@@ -157,21 +214,21 @@ def _folder_problem(out_dir: Path, spec) -> str | None:
         first = copy.read_text(encoding="utf-8").splitlines()[0]
     except (OSError, IndexError, UnicodeDecodeError):
         return f"-o {out_dir}: holds files but no {SWEEP_FILE}: not a sweep's folder"
-    if not first.startswith(_header(spec) + " "):
-        return (f"-o {out_dir}: holds the runs of another sweep ({first.removeprefix('# ')}); "
+    if not first.startswith(_header(spec, command) + " "):
+        return (f"-o {out_dir}: holds the runs of another {command} ({first.removeprefix('# ')}); "
                 "give another -o")
     return None
 
 
-def _header(spec) -> str:
-    return f"# excosim sweep {json.dumps(spec.name)}"
+def _header(spec, command: str = "sweep") -> str:
+    return f"# excosim {command} {json.dumps(spec.name)}"
 
 
-def _copy_sweep_file(spec, out_dir: Path) -> None:
-    """The sweep file as it was run, under a first line naming the sweep."""
+def _copy_sweep_file(spec, out_dir: Path, command: str = "sweep") -> None:
+    """The sweep file as it was run, under a first line naming the sweep (and the command)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     text = spec.path.read_text(encoding="utf-8")
-    (out_dir / SWEEP_FILE).write_text(f"{_header(spec)} (from {spec.path})\n{text}",
+    (out_dir / SWEEP_FILE).write_text(f"{_header(spec, command)} (from {spec.path})\n{text}",
                                       encoding="utf-8")
 
 
@@ -217,9 +274,10 @@ def _print_table(result) -> None:
               f"{len(result.skipped)} already complete, {len(result.failed)} failed) in "
               f"{result.out_dir}", markup=False, soft_wrap=True)
     for axis in result.sweep.axes:
-        if len(set(axis.values)) > TABLE_VALUES:
-            out.print(f"\n{axis.name}: {len(set(axis.values))} values (per run in the summary, "
-                      "per value in overview.png)", markup=False, soft_wrap=True)
+        if axis.design is not None or len(set(axis.values)) > TABLE_VALUES:
+            how = f" ({axis.design.design} design)" if axis.design is not None else ""
+            out.print(f"\n{axis.name}: {len(set(axis.values))} values{how} (per run in the "
+                      "summary, per value in overview.png)", markup=False, soft_wrap=True)
             continue
         out.print(f"\n{axis.name}", markup=False)
         out.print(f"  {'value':>24}  runs  mean|err| kg  worst kg  within band  resets"

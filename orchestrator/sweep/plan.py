@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from orchestrator.scenario import ScenarioError, load_scenario
-from orchestrator.sweep.spec import Sweep, SweepError
+from orchestrator.sweep.spec import INDEXED, Sweep, SweepError
 
 
 @dataclass(frozen=True)
@@ -64,15 +64,18 @@ def toml_value(value: Any) -> str:
     raise ValueError(f"cannot set a scenario value to {type(value).__name__}")
 
 
-def plan_runs(sweep: Sweep, out_dir: Path) -> list[RunTask]:
-    """Every run of `sweep`, checked, with its log path under out_dir/runs. SweepError (one
-    line: the sweep file, the axis and value, what the scenario says) for any run whose
-    scenario is not valid."""
-    points = sweep.points()
+def plan_runs(sweep: Sweep, out_dir: Path, points: list[dict[str, Any]] | None = None,
+              names: list[str] | None = None) -> list[RunTask]:
+    """Every run of `sweep` (or of `points`, {axis name: value} each, named `names`), checked,
+    with its log path under out_dir/runs. SweepError (one line: the sweep file, the axis and
+    value, what the scenario says) for any run whose scenario is not valid."""
+    points = sweep.points() if points is None else points
     width = max(4, len(str(len(points))))
+    names = names or [f"run-{index:0{width}d}" for index in range(1, len(points) + 1)]
     axes = {axis.name: axis for axis in sweep.axes}
+    lists: dict[tuple[str, str], list[Any]] = {}  # (base file, key) -> its list, for [i] keys
     tasks = []
-    for index, point in enumerate(points, 1):
+    for run, point in zip(names, points, strict=True):
         base, items = sweep.scenario, list(sweep.overrides)
         for name, value in point.items():
             axis = axes[name]
@@ -83,13 +86,44 @@ def plan_runs(sweep: Sweep, out_dir: Path) -> list[RunTask]:
                 items += [f"{key}={toml_value(value)}" for key in axis.keys]
             except ValueError as error:
                 raise SweepError(sweep.path.name, name, str(error)) from None
+        items = _elements(sweep, base, items, point, lists)
         scenario = _load(sweep, base, items, point)
-        run = f"run-{index:0{width}d}"
         tasks.append(RunTask(
             run=run, point=point, scenario=scenario.to_dict(), scenario_name=scenario.name,
             scenario_text=scenario.source_text or "", overrides=tuple(items),
             log_path=str((out_dir / "runs" / f"{run}.mcap").resolve())))
     return tasks
+
+
+def _elements(sweep: Sweep, base: Path, items: list[str], point: dict[str, Any],
+              lists: dict[tuple[str, str], list[Any]]) -> list[str]:
+    """items with every `key[i]=value` turned into `key=[...]`: the list of the base scenario
+    (with the sweep's `set`) with those elements replaced."""
+    plain, elements = [], {}
+    for item in items:
+        key, _, text = item.partition("=")
+        match = INDEXED.match(key.strip())
+        if match is None:
+            plain.append(item)
+        else:
+            elements.setdefault(match["key"], {})[int(match["index"])] = text
+    for key, changes in elements.items():
+        if (str(base), key) not in lists:
+            value: Any = _load(sweep, base, list(sweep.overrides), point).to_dict()
+            for part in key.split("."):
+                value = value.get(part) if isinstance(value, dict) else None
+            if not isinstance(value, list):
+                raise SweepError(sweep.path.name, key, "is not a list in the scenario, so "
+                                 f"{key}[i] names no element")
+            lists[(str(base), key)] = value
+        texts = [toml_value(v) for v in lists[(str(base), key)]]
+        for index, text in changes.items():
+            if index >= len(texts):
+                raise SweepError(sweep.path.name, f"{key}[{index}]", f"the list has "
+                                 f"{len(texts)} elements")
+            texts[index] = text
+        plain.append(f"{key}=[{', '.join(texts)}]")
+    return plain
 
 
 def _load(sweep: Sweep, base: Path, items: list[str], point: dict[str, Any]):

@@ -12,6 +12,11 @@
     sample = { distribution = "uniform", low = 1280.0, high = 1920.0, count = 20, seed = 1 }
     group = "pile"                             # axes of one group are zipped
 
+    [[axis]]                                   # a study design over a range (designs.py)
+    key = "adaptation.centre_fractions[1]"     # [i]: one element of a list value
+    sample = { design = "lhs", distribution = "uniform", low = 0.4, high = 0.8, count = 16,
+               seed = 1 }
+
     [[axis]]                                   # a plant substitution: one FMU for some roles
     roles = ["boom", "stick", "bucket"]
     fmu = ["HydraulicCylinder", "IdealActuator"]
@@ -28,6 +33,7 @@ file, the axis and what is wrong in one line.
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from orchestrator.scenario.overrides import parse_override
+from orchestrator.sweep.designs import DESIGNS, POWER_OF_TWO, Design, design_values, runs_of
 
 ROLES = ("boom", "stick", "bucket", "pile")
 DISTRIBUTIONS = {  # name -> its parameters
@@ -46,8 +53,10 @@ DISTRIBUTIONS = {  # name -> its parameters
 }
 _TOP_KEYS = {"name", "description", "scenario", "set", "axis"}
 _AXIS_KEYS = {"key", "values", "sample", "roles", "fmu", "scenario", "group", "name"}
-_SAMPLE_KEYS = {"distribution", "count", "seed"} | {p for ps in DISTRIBUTIONS.values() for p in ps}
+_SAMPLE_KEYS = {"distribution", "count", "seed", "design"} | {
+    p for ps in DISTRIBUTIONS.values() for p in ps}
 MAX_RUNS = 100_000  # a sweep beyond this is a typo in an axis, not a study
+INDEXED = re.compile(r"^(?P<key>[^\[\]]+)\[(?P<index>[0-9]+)\]$")  # "a.b[2]": an element
 
 
 class SweepError(ValueError):
@@ -66,12 +75,15 @@ class Axis:
     keys: the scenario keys each value sets (one; several for a substitution of several roles);
         empty for a scenario axis, whose values are scenario files.
     group: the zip group.
+    design: the range and study design it is sampled by (orchestrator.sweep.designs), or None
+        (listed values, independent random draws, substitutions, scenario files).
     """
 
     name: str
     values: tuple[Any, ...]
     keys: tuple[str, ...]
     group: str
+    design: Design | None = None
 
 
 @dataclass(frozen=True)
@@ -132,7 +144,8 @@ def load_sweep(path: str | Path) -> Sweep:
     tables = data.get("axis", [])
     if not isinstance(tables, list) or not tables:
         raise SweepError(source, "axis", "no axis: give at least one [[axis]] table")
-    axes = tuple(_axis(source, path.parent, i, table) for i, table in enumerate(tables, 1))
+    axes = _with_designs(source, tuple(_axis(source, path.parent, i, table)
+                                       for i, table in enumerate(tables, 1)))
     names = [axis.name for axis in axes]
     for name in names:
         if names.count(name) > 1:
@@ -170,11 +183,15 @@ def _axis(source: str, folder: Path, index: int, table: Any) -> Axis:
         key = table["key"]
         if not isinstance(key, str):
             raise SweepError(source, f"{where}: key", "must be a dotted scenario key")
+        indexed = INDEXED.match(key)
         try:
-            parse_override(f"{key}=0")
+            parse_override(f"{indexed['key'] if indexed else key}=0")
         except ValueError:
             raise SweepError(source, f"{where}: key", f"{key!r} is not a dotted scenario key "
-                             "(letters, digits, _ and -)") from None
+                             "(letters, digits, _ and -; [i] for an element of a list)") from None
+        design = _design(source, f"{where} ({key})", table)
+        if design is not None:
+            return Axis(str(table.get("name", key)), (), (key,), group, design)
         values = _values(source, f"{where} ({key})", table, allow_sample=True)
         return Axis(str(table.get("name", key)), values, (key,), group)
     if kinds == ["roles"]:
@@ -265,6 +282,73 @@ def _sample(source: str, where: str, sample: Any) -> tuple[Any, ...]:
     else:
         return tuple(int(n) for n in rng.integers(math.ceil(a), math.ceil(b), count))
     return tuple(float(x) for x in drawn)
+
+
+def _design(source: str, where: str, table: dict) -> Design | None:
+    """The axis's study design, or None for a sample of independent draws or a list."""
+    sample = table.get("sample")
+    if not isinstance(sample, dict) or sample.get("design", "random") == "random":
+        return None
+    if "values" in table:
+        raise SweepError(source, where, "give values = [...] or sample = {...}")
+    unknown = sorted(set(sample) - _SAMPLE_KEYS)
+    if unknown:
+        raise SweepError(source, f"{where}: sample", f"unknown key {unknown[0]!r}")
+    design, kind = sample["design"], sample.get("distribution", "uniform")
+    if design not in DESIGNS:
+        raise SweepError(source, f"{where}: sample", f"design must be one of "
+                         f"{', '.join(DESIGNS)}, got {design!r}")
+    if kind not in ("uniform", "loguniform"):
+        raise SweepError(source, f"{where}: sample", f"a {design} design samples a range: "
+                         f"distribution uniform or loguniform, got {kind!r}")
+    count, seed = sample.get("count"), sample.get("seed")
+    if isinstance(count, bool) or not isinstance(count, int) or not 2 <= count <= MAX_RUNS:
+        raise SweepError(source, f"{where}: sample", f"count must be an integer in 2..{MAX_RUNS}")
+    if design in POWER_OF_TWO and count & (count - 1):
+        raise SweepError(source, f"{where}: sample", f"a {design} design needs a count that "
+                         f"is a power of 2 (its balance), got {count}")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise SweepError(source, f"{where}: sample", "seed must be an integer >= 0 (a design "
+                         "is reproducible)")
+    bounds = []
+    for name in ("low", "high"):
+        value = sample.get(name)
+        if isinstance(value, bool) or not isinstance(value, int | float) \
+                or not math.isfinite(value):
+            raise SweepError(source, f"{where}: sample", f"{design} needs a finite number {name}")
+        bounds.append(float(value))
+    if not bounds[0] < bounds[1]:
+        raise SweepError(source, f"{where}: sample",
+                         f"low must be below high, got {bounds[0]}, {bounds[1]}")
+    if kind == "loguniform" and not bounds[0] > 0.0:
+        raise SweepError(source, f"{where}: sample", "loguniform needs low > 0")
+    return Design(design, bounds[0], bounds[1], kind == "loguniform", count, seed)
+
+
+def _with_designs(source: str, axes: tuple[Axis, ...]) -> tuple[Axis, ...]:
+    """The axes with the values of their group's design drawn (all design axes of a group
+    together, in the file's order)."""
+    from dataclasses import replace
+
+    out = list(axes)
+    for group in dict.fromkeys(a.group for a in axes):
+        members = [i for i, a in enumerate(axes) if a.group == group and a.design is not None]
+        if not members:
+            continue
+        first = axes[members[0]].design
+        for i in members:
+            d = axes[i].design
+            if (d.design, d.count, d.seed) != (first.design, first.count, first.seed):
+                raise SweepError(source, axes[i].name, f"its design ({d.design}, count "
+                                 f"{d.count}, seed {d.seed}) differs from {axes[members[0]].name}"
+                                 f"'s in group {group!r}: one design per group")
+        if runs_of(first.design, first.count, len(members)) > MAX_RUNS:
+            raise SweepError(source, axes[members[0]].name, f"the design has more than "
+                             f"{MAX_RUNS} runs")
+        values = design_values([axes[i].design for i in members])
+        for i, column in zip(members, values, strict=True):
+            out[i] = replace(axes[i], values=column)
+    return tuple(out)
 
 
 def _check_groups(source: str, axes: tuple[Axis, ...]) -> None:
