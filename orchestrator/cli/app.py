@@ -197,6 +197,7 @@ def compare(
 
 
 app.command("sweep", cls=Command)(sweep_command)
+app.command("optimize", cls=Command)(__import__("orchestrator.cli.optimize").cli.optimize.optimize)
 app.command("calibrate", cls=Command)(__import__("orchestrator.cli.calibrate").cli.calibrate.main)
 app.command("plot", cls=Command)(plot.plot)
 app.command("export", cls=Command)(export_command.export)
