@@ -8,9 +8,12 @@ measured joint angle (deg). Each is divided by a scale that says how large a res
 
 - mass scale s_m (kg): default 2 % of the log's target mass (0.6 kg for the paper's 30 kg, about
   a load cell's scatter and the model's own step-size error of 0.4 kg);
-- joint scale s_j (deg): default the log's own tracking RMS (measured vs reference over every
-  period): a model that puts the arm as far from the measured arm as the arm is from its own
-  reference is off by one scale. (Floor 0.01 deg.)
+- joint scale s_j (deg): default 0.05 deg, five steps of the lab machine's angle feedback
+  (0.01 deg, FbPosition in docs/can-protocol.md), well below the arm's own tracking error. A
+  stated scale rather than the log's own tracking RMS (measured vs reference, 0.3 deg on the
+  paper's run): that one says how far the arm strays from its reference, not how precisely its
+  angles are known, and with it the joint term was so weak that 0.5 kg of weighing noise moved
+  the fitted repose angle by up to 1.3 deg (5 noise seeds); with 0.05 deg, by at most 0.04 deg.
 
     score = sqrt(w * mean_k (r_k / s_m)^2 + (1 - w) * mean_k (e_k / s_j)^2),  w = 0.5
 
@@ -33,7 +36,7 @@ from orchestrator.calibrate.drive import SimulatedPeriod, drive
 from orchestrator.calibrate.measured import MeasuredRun
 
 MASS_SCALE_FRACTION = 0.02  # of the target mass
-JOINT_SCALE_FLOOR_DEG = 0.01
+JOINT_SCALE_DEG = 0.05
 
 
 @dataclass(frozen=True)
@@ -52,8 +55,7 @@ class Weighting:
             float(np.mean([p.mass_kg for p in measured.periods]))
         return cls(mass_weight,
                    mass_scale_kg if mass_scale_kg is not None else MASS_SCALE_FRACTION * target,
-                   joint_scale_deg if joint_scale_deg is not None else
-                   max(measured.own_tracking_rms_deg, JOINT_SCALE_FLOOR_DEG))
+                   joint_scale_deg if joint_scale_deg is not None else JOINT_SCALE_DEG)
 
 
 @dataclass

@@ -111,7 +111,8 @@ def check_parameters(scenario_path: Path, overrides: Sequence[str], texts: Seque
             try:
                 load_scenario(scenario_path, [*overrides, f"{key}={end!r}"])
             except ScenarioError as error:
-                raise CalibrationError(f"--param {key}={low:g}:{high:g}: {end:g} is outside "
-                                       f"what the scenario accepts: {error}") from None
+                raise CalibrationError(f"--param {key}: {end:g} (of the range {low:g} to "
+                                       f"{high:g}) is outside what the scenario accepts: "
+                                       f"{error}") from None
         parameters.append(Parameter(key, low, high, min(max(float(value), low), high)))
     return parameters

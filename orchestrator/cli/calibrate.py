@@ -66,7 +66,7 @@ def main(
         "2 % of the log's target mass).")] = None,
     joint_scale: Annotated[float | None, typer.Option(
         "--joint-scale-deg", metavar="DEG", help="Joint RMS residual worth one unit of score "
-        "(default: the log's own tracking RMS).")] = None,
+        "(default 0.05 deg).")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors.")
                      ] = False,
