@@ -6,7 +6,10 @@ process pool or an existing Dask cluster, with a summary table and resume.
     result.frame  # one row per run: axis values, compare figures, termination, wall time, log
 
 The sweep file: orchestrator.sweep.spec; the runs: orchestrator.sweep.plan; where they run:
-orchestrator.sweep.executors; the summary: orchestrator.sweep.table.
+orchestrator.sweep.executors; the summary: orchestrator.sweep.table; study designs over ranges
+(Latin hypercube, Sobol, Saltelli): orchestrator.sweep.designs; Sobol indices of the summary's
+figures: orchestrator.sweep.sensitivity; an Optuna search over the design axes:
+orchestrator.sweep.optimize.
 """
 
 from orchestrator.sweep.executors import SchedulerUnreachable
