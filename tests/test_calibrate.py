@@ -108,7 +108,7 @@ def test_the_same_command_continues_its_study(measured, tmp_path):
             str(tmp_path / "fit"), "--json"]
     import json
 
-    first = _calibrate(*args, "--trials", "4")
+    first = _calibrate(*args, "--trials", "4", "--workers", "2")  # on the local pool
     assert first.exit_code == 0, first.output
     assert json.loads(first.stdout)["ran"] == 4
     again = _calibrate(*args, "--trials", "6")
@@ -183,3 +183,18 @@ def test_a_log_of_another_machine_or_without_the_channels_is_refused(measured, t
         assert len(done.stderr.strip().splitlines()) == 1
         assert ("/joints" if topic == "/joints" else "no complete period") in done.stderr
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.slow
+def test_trials_on_a_dask_cluster(measured, tmp_path):
+    import json
+
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster:
+        done = _calibrate(str(SCENARIO), "--against", str(measured), "--param", PARAMS[0],
+                          "--trials", "3", "--scheduler", cluster.scheduler_address, "-o",
+                          str(tmp_path / "fit"), "--json")
+    assert done.exit_code == 0, done.output
+    assert json.loads(done.stdout)["ran"] == 3

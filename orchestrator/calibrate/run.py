@@ -76,16 +76,16 @@ def calibrate(scenario_path: str | Path, against: str | Path, params: Sequence[s
 
     scenario_path, out_dir = Path(scenario_path), Path(out_dir)
     parameters, problem = prepare(scenario_path, against, params, overrides, weighting)
-    out_dir.mkdir(parents=True, exist_ok=True)
     signature = {"scenario": str(scenario_path.resolve()), "text": scenario_path.read_text(),
                  "overrides": list(overrides), "log": str(Path(against).resolve()),
                  "params": list(params), "weighting": vars(problem.weighting), "seed": seed}
-    study = open_study(out_dir, study_name(signature), seed)
-    held = len(complete(study))
-    if on_start is not None:
-        on_start(held, trials)
-    began = time.perf_counter()
-    with Trials(problem, workers, scheduler) as executor:
+    with Trials(problem, workers, scheduler) as executor:  # a scheduler is reached first
+        out_dir.mkdir(parents=True, exist_ok=True)
+        study = open_study(out_dir, study_name(signature), seed)
+        held = len(complete(study))
+        if on_start is not None:
+            on_start(held, trials)
+        began = time.perf_counter()
         search(study, parameters, executor, trials, progress)
     ran = len(complete(study)) - held
     wall = (time.perf_counter() - began) / ran if ran else float("nan")

@@ -69,8 +69,6 @@ def search(study, parameters: Sequence[Parameter], trials: Trials, budget: int,
 
     distributions = {p.key: optuna.distributions.FloatDistribution(p.low, p.high)
                      for p in parameters}
-    if not study.trials:
-        study.enqueue_trial({p.key: p.start for p in parameters})
     n_tpe = max(1, min(budget, round(TPE_SHARE * budget)))
 
     def report() -> None:
@@ -85,6 +83,17 @@ def search(study, parameters: Sequence[Parameter], trials: Trials, budget: int,
             report()
         return fits
 
+    def given(points: list[dict[str, float]]) -> list[Fit]:
+        """Trials at given points, added to the study once run (none is left waiting in it
+        by an interruption, to be taken for another point later)."""
+        fits = trials.map(points)
+        for point, fit in zip(points, fits, strict=True):
+            _add(study, distributions, point, fit)
+            report()
+        return fits
+
+    if not complete(study):  # the scenario's own values first
+        given([{p.key: p.start for p in parameters}])
     while len(complete(study)) < n_tpe:
         batch = min(trials.parallel, n_tpe - len(complete(study)))
         run([study.ask(distributions) for _ in range(batch)])
@@ -92,24 +101,37 @@ def search(study, parameters: Sequence[Parameter], trials: Trials, budget: int,
     found = best(study)
     if left <= 0 or found is None:
         return
-    _polish(study, parameters, distributions, found[0], left, run)
+    _polish(parameters, found[0], left, given)
 
 
 def _tell(study, trial, fit: Fit) -> None:
     import optuna
 
-    trial.set_user_attr("masses_kg", fit.masses_kg)
-    trial.set_user_attr("tracking_rms_deg", fit.tracking_rms_deg)
-    if fit.error:
-        trial.set_user_attr("error", fit.error)
+    for name, value in _attributes(fit).items():
+        trial.set_user_attr(name, value)
     if math.isfinite(fit.score):
         study.tell(trial, fit.score)
     else:
         study.tell(trial, state=optuna.trial.TrialState.FAIL)
 
 
-def _polish(study, parameters: Sequence[Parameter], distributions: dict, start: dict,
-            maxfev: int, run: Callable[[list], list[Fit]]) -> None:
+def _attributes(fit: Fit) -> dict:
+    extra = {"error": fit.error} if fit.error else {}
+    return {"masses_kg": fit.masses_kg, "tracking_rms_deg": fit.tracking_rms_deg, **extra}
+
+
+def _add(study, distributions: dict, point: dict[str, float], fit: Fit) -> None:
+    import optuna
+
+    state = optuna.trial.TrialState
+    study.add_trial(optuna.trial.create_trial(
+        params=point, distributions=distributions, user_attrs=_attributes(fit),
+        value=fit.score if math.isfinite(fit.score) else None,
+        state=state.COMPLETE if math.isfinite(fit.score) else state.FAIL))
+
+
+def _polish(parameters: Sequence[Parameter], start: dict, maxfev: int,
+            run: Callable[[list], list[Fit]]) -> None:
     """Nelder-Mead in the unit cube of the ranges from `start`, each evaluation a study trial."""
     from scipy.optimize import minimize
 
@@ -122,8 +144,7 @@ def _polish(study, parameters: Sequence[Parameter], distributions: dict, start: 
         key = tuple(np.round(x, 12))
         if key not in seen:
             values = {p.key: p.from_unit(float(v)) for p, v in zip(parameters, x, strict=True)}
-            study.enqueue_trial(values)
-            fit = run([study.ask(distributions)])[0]
+            fit = run([values])[0]
             seen[key] = fit.score if math.isfinite(fit.score) else 1e9
         return seen[key]
 
