@@ -198,3 +198,17 @@ def test_trials_on_a_dask_cluster(measured, tmp_path):
                           str(tmp_path / "fit"), "--json")
     assert done.exit_code == 0, done.output
     assert json.loads(done.stdout)["ran"] == 3
+
+
+def test_the_paper_benchs_figure_9_score_runs_as_an_objective_of_the_same_search(tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    args = [sys.executable, str(ROOT / "bench" / "calibrate_paper.py"), "--optuna",
+            str(tmp_path / "study"), "--trials", "2", "--workers", "1", "--json"]
+    done = subprocess.run(args, capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert done.returncode == 0, done.stderr[-2000:]
+    report = json.loads(done.stdout)
+    assert report["campaigns"] == {"optuna": 2} and (tmp_path / "study" / "study.db").is_file()
+    assert report["best"]["total"] <= report["start"]["total"]

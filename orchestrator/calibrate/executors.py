@@ -2,7 +2,11 @@
 (spawned workers, each holding the Problem once), or on a Dask cluster (the Problem scattered
 to every worker once, one task per trial). The Dask connection is the sweep's
 (orchestrator.sweep.executors.connect: SchedulerUnreachable, one line); the sweep's own local
-pool runs sweep runs only (RunTask in, summary row out), so trials use the standard pool."""
+pool runs sweep runs only (RunTask in, summary row out), so trials use the standard pool.
+
+The problem is any picklable object with `evaluate(values: {key: value}) -> Fit` (never
+raising for a failing trial): orchestrator.calibrate.objective.Problem, or another score, as
+bench/calibrate_paper.py's Figure 9 campaign score."""
 
 from __future__ import annotations
 
