@@ -212,3 +212,20 @@ def test_the_paper_benchs_figure_9_score_runs_as_an_objective_of_the_same_search
     report = json.loads(done.stdout)
     assert report["campaigns"] == {"optuna": 2} and (tmp_path / "study" / "study.db").is_file()
     assert report["best"]["total"] <= report["start"]["total"]
+
+
+@pytest.mark.slow
+def test_a_lab_log_of_the_emulated_device_calibrates_to_its_simulated_plant(lab_hil_run,
+                                                                            tmp_path):
+    """The emulated device runs the scenario's own model behind the CAN link: from a wrong
+    density the fit returns to the device's 1,600 kg/m^3. Tolerance 10 kg/m^3: the link weighs
+    to 1 g, 2 kg/m^3 of period 1's 0.73 kg."""
+    from orchestrator.calibrate import calibrate
+
+    done, log = lab_hil_run
+    assert done.exit_code == 0, done.output
+    result = calibrate(ROOT / "scenarios" / "lab.toml", log, [f"{DENSITY}=1200:2200"],
+                       tmp_path / "fit", overrides=[f"{DENSITY}=1400"], trials=16)
+    assert result.measured.plant_kind == "lab" and result.parameters[0].start == 1400.0
+    assert abs(result.best_values[DENSITY] - 1600.0) < 10.0
+    assert result.best_fit.score < 0.1 * result.start_fit.score
