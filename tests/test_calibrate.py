@@ -182,6 +182,12 @@ def test_a_log_of_another_machine_or_without_the_channels_is_refused(measured, t
         assert done.exit_code == 2, done.output
         assert len(done.stderr.strip().splitlines()) == 1
         assert ("/joints" if topic == "/joints" else "no complete period") in done.stderr
+    for log, says in ((tmp_path / "missing.mcap", "no such file"),
+                      (SCENARIO, "not a readable run log")):
+        done = _calibrate(str(SCENARIO), "--against", str(log), "--param",
+                          f"{DENSITY}=1400:2000", "-o", str(tmp_path / "out"))
+        assert done.exit_code == 2 and says in done.stderr
+        assert len(done.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "out").exists()
 
 
