@@ -220,3 +220,25 @@ def test_optimize_finds_the_heavier_side_and_resumes(tmp_path):
     other = _cli(tmp_path, "optimize", str(sweep), "-o", "out", "--objective",
                  "total_payload_kg", "--minimize", "--trials", "7")
     assert other.returncode == 2 and "maximizes total_payload_kg" in other.stderr
+
+
+@pytest.mark.slow
+def test_optimize_runs_its_trials_on_a_dask_cluster(tmp_path):
+    from distributed import LocalCluster
+
+    from orchestrator.sweep.optimize import run_optimize
+
+    text = ONE_PERIOD + _axis("plant.pile.parameters.density", "lhs", 1300, 1900, 4, 1) \
+        + '[[axis]]\nkey = "seed"\nvalues = [1, 2]\n'
+    sweep = _write(tmp_path, text)
+    local = run_optimize(sweep, tmp_path / "local", "total_payload_kg", maximize=True,
+                         trials=2, workers=2)
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster:
+        on_dask = run_optimize(sweep, tmp_path / "dask", "total_payload_kg", maximize=True,
+                               trials=2, scheduler=cluster.scheduler_address)
+    assert [t["params"] for t in on_dask.trials] == [t["params"] for t in local.trials]
+    assert [t["value"] for t in on_dask.trials] == pytest.approx(
+        [t["value"] for t in local.trials])
+    assert (tmp_path / "dask" / "runs" / "trial-0001-02.mcap").is_file()
+    assert list(on_dask.frame["trial"]) == [0, 0, 1, 1]

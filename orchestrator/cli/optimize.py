@@ -177,7 +177,7 @@ def _print(result) -> None:
               f"{result.out_dir}", markup=False, soft_wrap=True)
     names = list(result.trials[0]["params"]) if result.trials else []
     done.sort(key=lambda t: t["value"], reverse=result.direction == "maximize")
-    out.print("  trial  " + "  ".join(f"{n[-24:]:>24}" for n in names)
+    out.print("  trial  " + "  ".join(f"{n.rsplit('.', 1)[-1][-24:]:>24}" for n in names)
               + f"  {result.objective:>20}  runs", markup=False, soft_wrap=True)
     for t in done[:TOP]:
         out.print(f"  {t['number']:>5}  " + "  ".join(f"{t['params'].get(n, float('nan')):>24.6g}"

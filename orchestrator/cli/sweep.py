@@ -274,9 +274,10 @@ def _print_table(result) -> None:
               f"{len(result.skipped)} already complete, {len(result.failed)} failed) in "
               f"{result.out_dir}", markup=False, soft_wrap=True)
     for axis in result.sweep.axes:
-        if axis.design is not None or len(set(axis.values)) > TABLE_VALUES:
+        distinct = len({json.dumps(v) for v in axis.values})  # list values too
+        if axis.design is not None or distinct > TABLE_VALUES:
             how = f" ({axis.design.design} design)" if axis.design is not None else ""
-            out.print(f"\n{axis.name}: {len(set(axis.values))} values{how} (per run in the "
+            out.print(f"\n{axis.name}: {distinct} values{how} (per run in the "
                       "summary, per value in overview.png)", markup=False, soft_wrap=True)
             continue
         out.print(f"\n{axis.name}", markup=False)
