@@ -304,3 +304,11 @@ def test_no_output_says_1_periods(tmp_path, double_plant):
     refused = CliRunner().invoke(app, ["review", str(log), "--plots", str(tmp_path / "f"),
                                        "--period", "2"])
     assert refused.stderr == f"excosim: --period 2: {log} holds period 1 only\n"
+
+
+def test_a_one_line_error_prints_its_text_as_it_is(capsys):
+    """rich would turn emoji codes such as ":100:" (a range 0:100:...) into pictures."""
+    from orchestrator.cli.conventions import fail
+
+    fail("--param x=0:100:5 [bold]not markup[/bold]")
+    assert capsys.readouterr().err == "excosim: --param x=0:100:5 [bold]not markup[/bold]\n"

@@ -31,7 +31,7 @@ _FAILED = [0]  # lines printed by fail(): main() tells a stop that said nothing 
 
 def fail(message: str) -> None:
     """Print `excosim: message` as one line on stderr (never wrapped into several)."""
-    _err.print(f"{PROG}: {message}", markup=False, soft_wrap=True)
+    _err.print(f"{PROG}: {message}", markup=False, emoji=False, soft_wrap=True)
     _FAILED[0] += 1
 
 
