@@ -34,6 +34,7 @@ from orchestrator.sweep.plan import RunTask
 from orchestrator.sweep.worker import execute, log_row
 
 OnRow = Callable[[dict[str, Any]], None]
+More = Callable[[], list[RunTask]]  # more tasks once the queue is empty ([] when none)
 _BLAS_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 _ONE_AT_A_TIME = threading.Lock()  # a Dask worker's threads share one process and its FMUs
 
@@ -43,14 +44,15 @@ class SchedulerUnreachable(ConnectionError):
 
 
 def run_local(tasks: list[RunTask], token: str, workers: int, recycle_after: int,
-              on_row: OnRow) -> None:
+              on_row: OnRow, more: More | None = None) -> None:
     """Run `tasks` on `workers` local processes; on_row(row) in this process as each run ends,
-    in the order they end."""
+    in the order they end. more(): called whenever the queue is empty, its tasks join it (an
+    optimisation's next trial, so that the workers stay busy and alive between trials)."""
     context = multiprocessing.get_context("spawn")
     queue, pool = deque(tasks), []
     with _one_blas_thread():
         try:
-            while queue or any(w.task is not None for w in pool):
+            while _refill(queue, more, workers - _busy(pool)) or _busy(pool):
                 while len(pool) < min(workers, len(queue) + _busy(pool)):
                     pool.append(_Worker(context, token))
                 for worker in pool:
@@ -72,6 +74,17 @@ def run_local(tasks: list[RunTask], token: str, workers: int, recycle_after: int
         finally:
             for worker in pool:
                 worker.stop()
+
+
+def _refill(queue: deque, more: More | None, idle: int) -> bool:
+    """Whether tasks wait in the queue, after asking `more` for some while fewer wait than
+    there are idle workers."""
+    while more is not None and len(queue) < idle:
+        batch = more()
+        if not batch:
+            break
+        queue.extend(batch)
+    return bool(queue)
 
 
 def _busy(pool: list[_Worker]) -> int:
@@ -181,20 +194,36 @@ def connect(address: str, timeout_s: float = 10.0):
                                    f"({reason})") from None
 
 
-def run_dask(tasks: list[RunTask], token: str, client, on_row: OnRow) -> None:
-    """Run `tasks` as tasks of the Dask cluster behind `client`; on_row(row) as each ends."""
+def run_dask(tasks: list[RunTask], token: str, client, on_row: OnRow,
+             more: More | None = None) -> None:
+    """Run `tasks` as tasks of the Dask cluster behind `client`; on_row(row) as each ends.
+    more(): called when no submitted task waits to start (see run_local); its tasks are
+    submitted too."""
     from distributed import as_completed as dask_completed
 
-    futures = {client.submit(_execute_alone, task, token, key=f"excosim-{token}-{task.run}",
-                             pure=False): task for task in tasks}
+    def submit(batch: list[RunTask]) -> list:
+        new = {client.submit(_execute_alone, task, token, key=f"excosim-{token}-{task.run}",
+                             pure=False): task for task in batch}
+        futures.update(new)
+        return list(new)
+
+    futures: dict[Any, RunTask] = {}
+    waiting = submit(tasks) or submit(more() if more is not None else [])
     try:
-        for future in dask_completed(list(futures), loop=client.loop):
+        running = dask_completed(waiting, loop=client.loop)
+        for future in running:
             task = futures[future]
             try:
                 row = future.result()
             except Exception as failure:  # noqa: BLE001 - a lost worker, a task error
                 row = _failed(task, f"{type(failure).__name__}: {failure}")
             on_row(row)
+            while more is not None and running.count() < len(client.nthreads()):
+                new = submit(more())
+                if not new:
+                    break
+                for one in new:
+                    running.add(one)
     except BaseException:
         client.cancel(list(futures))
         raise

@@ -14,9 +14,9 @@ random samples, substitutions) is a condition: one trial runs the product of the
 (e.g. 20 piles), and its objective is the mean of the figure over the trial's runs that have it
 (a trial none of whose runs has it fails, as does one whose values make no valid scenario).
 
-Executors: the trials are asked in batches that fill the workers (local processes, or the Dask
-cluster's worker processes, divided by a trial's runs; at least one trial), with TPE's constant
-liar for the trials in flight; each trial is told as its last run ends.
+Executors: the trials are a stream of runs on one local pool (its processes kept between trials)
+or on the Dask cluster: the next trial is asked as soon as a worker would otherwise idle (TPE's
+constant liar stands in for the trials in flight), and each trial is told as its last run ends.
 
 Storage: the study is Optuna's RDB storage on sqlite, `study.db` beside the logs (runs/
 trial-NNNN-KK.mcap and their .json rows), named after the sweep. The same command again goes on
@@ -136,17 +136,10 @@ def run_optimize(sweep: Sweep | str | Path, out_dir: str | Path, objective: str,
         token = secrets.token_hex(8)
         (out_dir / TOKEN_FILE).write_text(token + "\n")
         rows = _earlier_rows(out_dir)
-        capacity = len(client.nthreads()) if client is not None else workers or os.cpu_count()
-        batch = max(1, (capacity or 1) // len(points))
-        ran = 0
+        stream = _Stream(study, _Context(sweep, out_dir, search, points, objective, trials,
+                                         progress), rows, attach=client is not None)
         try:
-            while (done := _finished(study)) < trials:
-                asked = [study.ask() for _ in range(min(batch, trials - done))]
-                ran += len(asked)
-                _batch(study, asked, _Context(sweep, out_dir, search, points, objective,
-                                              trials, progress), rows,
-                       lambda todo, ended: _execute(todo, ended, client, token, workers,
-                                                    recycle_after))
+            _execute(stream, client, token, workers, recycle_after)
         finally:
             axes = ["trial", *[a.name for a in sweep.axes]]
             frame = summary_frame(rows, axes, out_dir)
@@ -160,8 +153,8 @@ def run_optimize(sweep: Sweep | str | Path, out_dir: str | Path, objective: str,
         if client is not None:
             client.close()
     best = _best(study)
-    return OptimizeResult(sweep, objective, direction, trial_list, best, ran, frame, out_dir,
-                          parquet, csv, figure, out_dir / STUDY)
+    return OptimizeResult(sweep, objective, direction, trial_list, best, stream.ran, frame,
+                          out_dir, parquet, csv, figure, out_dir / STUDY)
 
 
 @dataclass(frozen=True)
@@ -175,40 +168,58 @@ class _Context:
     progress: Callable[[dict[str, Any]], None] | None
 
 
-def _batch(study, asked: list, context: _Context, rows: list[dict[str, Any]],
-           execute: Callable) -> None:
-    """Plan, run and tell the asked trials; rows gets the row of every run as it ends."""
-    from orchestrator.sweep.runner import _store
+class _Stream:
+    """The trials as a stream of runs: more() asks the next trial and gives its runs (while
+    the study lacks trials), ended(row) stores a run's row and tells its trial once its last
+    run has ended."""
 
-    pending = _plan(context, asked, study)
-    for trial in asked:
-        if trial.number not in pending:
-            _report(study, trial, context)
-    by_run = {t.run: (t, n) for n, ts in pending.items() for t in ts}
-    trial_rows: dict[int, list[dict[str, Any]]] = {n: [] for n in pending}
+    def __init__(self, study, context: _Context, rows: list[dict[str, Any]],
+                 attach: bool) -> None:
+        self.study, self.context, self.rows, self.attach = study, context, rows, attach
+        self.asked: dict[int, Any] = {}  # trial number -> its optuna Trial, until told
+        self.pending: dict[int, list[RunTask]] = {}
+        self.trial_rows: dict[int, list[dict[str, Any]]] = {}
+        self.by_run: dict[str, tuple[RunTask, int]] = {}
+        self.ran = 0
 
-    def ended(row: dict[str, Any]) -> None:
-        task, number = by_run[row["run"]]
+    def more(self) -> list[RunTask]:
+        while _finished(self.study) + len(self.asked) < self.context.total:
+            trial = self.study.ask()
+            self.ran += 1
+            tasks = _plan(self.context, trial, self.study)
+            if tasks is None:
+                _report(self.study, trial, self.context)
+                continue
+            self.asked[trial.number], self.pending[trial.number] = trial, tasks
+            self.trial_rows[trial.number] = []
+            self.by_run.update({t.run: (t, trial.number) for t in tasks})
+            return attach_fmu_files(tasks) if self.attach else tasks
+        return []
+
+    def ended(self, row: dict[str, Any]) -> None:
+        from orchestrator.sweep.runner import _store
+
+        task, number = self.by_run[row["run"]]
         row = {"trial": number, **row}
         _store(row, task)
-        rows.append(without_log_bytes(row))
-        trial_rows[number].append(rows[-1])
-        if len(trial_rows[number]) == len(pending[number]):
-            trial = next(t for t in asked if t.number == number)
-            _tell(study, trial, trial_rows[number], context.objective)
-            _report(study, trial, context)
-
-    execute([t for ts in pending.values() for t in ts], ended)
+        self.rows.append(without_log_bytes(row))
+        self.trial_rows[number].append(self.rows[-1])
+        if len(self.trial_rows[number]) == len(self.pending[number]):
+            trial = self.asked.pop(number)
+            _tell(self.study, trial, self.trial_rows[number], self.context.objective)
+            _report(self.study, trial, self.context)
 
 
-def _execute(todo: list[RunTask], ended: Callable, client, token: str, workers: int | None,
+def _execute(stream: _Stream, client, token: str, workers: int | None,
              recycle_after: int) -> None:
+    """The stream's runs on the Dask cluster or the local pool, the workers kept busy."""
     from orchestrator.sweep import executors
 
     if client is not None:
-        executors.run_dask(attach_fmu_files(todo), token, client, ended)
-    elif todo:
-        executors.run_local(todo, token, workers or os.cpu_count() or 1, recycle_after, ended)
+        executors.run_dask([], token, client, stream.ended, more=stream.more)
+    else:
+        executors.run_local([], token, workers or os.cpu_count() or 1, recycle_after,
+                            stream.ended, more=stream.more)
 
 
 def _study(sweep: Sweep, out_dir: Path, objective: str, direction: str, seed: int,
@@ -246,23 +257,21 @@ def _finished(study) -> int:
                and t.number not in interrupted for t in study.get_trials(deepcopy=False))
 
 
-def _plan(context: _Context, asked: list, study) -> dict[int, list[RunTask]]:
-    """The runs of each asked trial; a trial whose values make no valid scenario is failed."""
+def _plan(context: _Context, trial, study) -> list[RunTask] | None:
+    """The runs of an asked trial; None (the trial failed) when its values make no valid
+    scenario."""
     from optuna.trial import TrialState
 
-    pending = {}
-    for trial in asked:
-        params = {a.name: trial.suggest_float(a.name, a.design.low, a.design.high,
-                                              log=a.design.log) for a in context.search}
-        points = context.points
-        names = [f"trial-{trial.number:04d}-{k:02d}" for k in range(1, len(points) + 1)]
-        try:
-            pending[trial.number] = plan_runs(context.sweep, context.out_dir,
-                                              [{**p, **params} for p in points], names)
-        except SweepError as error:
-            trial.set_user_attr("error", str(error))
-            study.tell(trial, state=TrialState.FAIL)
-    return pending
+    params = {a.name: trial.suggest_float(a.name, a.design.low, a.design.high,
+                                          log=a.design.log) for a in context.search}
+    names = [f"trial-{trial.number:04d}-{k:02d}" for k in range(1, len(context.points) + 1)]
+    try:
+        return plan_runs(context.sweep, context.out_dir,
+                         [{**p, **params} for p in context.points], names)
+    except SweepError as error:
+        trial.set_user_attr("error", str(error))
+        study.tell(trial, state=TrialState.FAIL)
+        return None
 
 
 def _tell(study, trial, rows: list[dict[str, Any]], objective: str) -> None:
