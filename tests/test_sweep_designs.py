@@ -242,3 +242,24 @@ def test_optimize_runs_its_trials_on_a_dask_cluster(tmp_path):
         [t["value"] for t in local.trials])
     assert (tmp_path / "dask" / "runs" / "trial-0001-02.mcap").is_file()
     assert list(on_dask.frame["trial"]) == [0, 0, 1, 1]
+
+
+def test_a_trial_interrupted_in_the_study_is_failed_and_run_again(tmp_path):
+    from optuna.trial import TrialState
+
+    from orchestrator.sweep.optimize import _finished, _study
+
+    sweep = load_sweep(_write(tmp_path, ONE_PERIOD + _axis("plant.load_cell_noise_kg", "lhs", 0,
+                                                           1, 4, 1)))
+    study = _study(sweep, tmp_path, "resets", "minimize", 0, 4)
+    study.tell(study.ask({"x": __import__("optuna").distributions.FloatDistribution(0, 1)}), 1.0)
+    running = study.ask()
+    running.suggest_float("x", 0.0, 1.0)  # a session stopped with this trial in flight
+    again = _study(sweep, tmp_path, "resets", "minimize", 0, 4)
+    states = [t.state for t in again.get_trials(deepcopy=False)]
+    assert states == [TrialState.COMPLETE, TrialState.FAIL, TrialState.WAITING]
+    assert again.user_attrs["interrupted"] == [1] and _finished(again) == 1
+    first = again.ask()  # the enqueued values come first
+    assert first.suggest_float("x", 0.0, 1.0) == running.params["x"]
+    with pytest.raises(SweepError, match="minimizes resets; give another -o"):
+        _study(sweep, tmp_path, "resets", "maximize", 0, 4)

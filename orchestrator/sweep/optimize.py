@@ -114,7 +114,6 @@ def run_optimize(sweep: Sweep | str | Path, out_dir: str | Path, objective: str,
     """Run the study until it holds `trials` finished trials (see the module docstring).
     progress(event) after each trial: number, value (or None), state, best (value or None),
     done, total. SweepError / SchedulerUnreachable (one line) before any run."""
-    import optuna
 
     from orchestrator.sweep import executors
     from orchestrator.sweep.runner import _build_our_fmus
@@ -129,7 +128,6 @@ def run_optimize(sweep: Sweep | str | Path, out_dir: str | Path, objective: str,
     direction = "maximize" if maximize else "minimize"
     client = executors.connect(scheduler) if scheduler else None
     try:
-        optuna.logging.set_verbosity(optuna.logging.WARNING)
         (out_dir / "runs").mkdir(parents=True, exist_ok=True)
         study = _study(sweep, out_dir, objective, direction, seed, trials)
         _build_our_fmus()
@@ -229,6 +227,7 @@ def _study(sweep: Sweep, out_dir: Path, objective: str, direction: str, seed: in
     import optuna
     from optuna.trial import TrialState
 
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
     storage = optuna.storages.RDBStorage(f"sqlite:///{(out_dir / STUDY).resolve()}")
     sampler = optuna.samplers.TPESampler(seed=seed, n_startup_trials=max(2, min(10, trials // 3)),
                                          constant_liar=True)
