@@ -41,6 +41,7 @@ SLOW_MODULES = {
     "test_examples.py",          # every numbered example (11)
     "test_scenario_mutations.py",  # generated scenarios, each dug (11)
     "test_run_log_damage.py",    # decompression bombs and damaged chunks in every command (11)
+    "test_log_record_mutations.py",  # 300 edited logs, each through five commands (90)
 }
 SLOW_TESTS = {
     ("test_foxglove_layout.py", "test_each_machines_"): "lab (emulated",  # the lab run (40)

@@ -100,6 +100,11 @@ CASES = [
      "error_kg is inf, not a finite number"),
     ("nested", lambda text: text[:-1].encode() + b', "deep": ' + b"[" * 100000 +
      b"]" * 100000 + b"}", "/period record 2 is nested too deeply"),
+    # Python's parser takes 900 levels; what recurses over the record (--json) would not.
+    ("nested 900", lambda text: text[:-1].encode() + b', "deep": ' + b"[" * 900 +
+     b"]" * 900 + b"}", "/period record 2 is nested too deeply (more than 32 levels)"),
+    ("planner_ms a string", _edit("planner_ms", "x"),
+     "/period record 2: planner_ms is 'x', not a finite number"),
 ]
 
 
@@ -242,3 +247,27 @@ def test_resume_refuses_a_duplicated_channel_record(log, tmp_path):
     assert len(read_run(twice).periods) == 1  # the reader itself takes it
     refused_by_resume(twice, "the part a resume copies is not as its writer left it: "
                       "channel 4 (/cylinder/boom) is recorded twice")
+
+
+def test_a_record_without_the_figures_a_log_may_lack_is_reviewed(log, tmp_path):
+    """planner_ms and the productivity figures may be absent (older logs, other plants): the
+    table shows a dash, the figures None."""
+    def without(text: str) -> bytes:
+        record = json.loads(text)
+        for key in ("planner_ms", "energy_kj", "cycle_time_s"):
+            del record[key]
+        return json.dumps(record).encode()
+    lacking = rewrite(log, tmp_path / "lacking.mcap", period=without)
+    done = subprocess.run([sys.executable, "-m", "orchestrator.cli.app", "review", str(lacking)],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and done.stderr == "", done.stderr
+    assert "–" in done.stdout
+
+
+def test_a_header_without_a_readable_target_is_one_line(log, tmp_path):
+    for header in ({"target_mass_kg": "x"}, {}):
+        bad = rewrite(log, tmp_path / "header.mcap", header=lambda values, h=header: {
+            **{k: v for k, v in values.items() if k != "target_mass_kg"}, **h})
+        with pytest.raises(RunLogError, match="the header \\(excosim.run\\): target_mass_kg is "):
+            read_run(bad)
+        bad.unlink()

@@ -125,7 +125,10 @@ def _prepare(path: Path, run: RunFile, data: bytes) -> ResumeSource:
         raise ResumeRefused(f"{path} holds no resume state (a log of an older version, or of "
                             "a plant whose FMUs cannot save their state): it cannot be resumed")
     k = max(candidates)
+    from orchestrator.runlog.records import loads
+
     try:
+        loads(run.resume_states[k], "it")  # "nested too deeply" before the parser recurses
         record = parse_resume_record(run.resume_states[k], k)
     except ValueError as error:
         raise ResumeRefused(f"{path}: the resume state after period {k}: {error}") from None
@@ -321,8 +324,12 @@ def _continue(source: ResumeSource, output: str | Path | None, overwrite: bool,
         return StepWatchdog(step_timeout_s,
                             lambda detail: on_step_timeout(f"period {k + 1}: {detail}"))
 
-    with watchdog():
-        plant = build_plant(scenario)
+    try:
+        with watchdog():
+            plant = build_plant(scenario)
+    except ValueError as error:  # what the scenario asks of its FMUs (run: PlantRefused)
+        raise ResumeRefused(f"{source.path}: its plant cannot be built again: "
+                            f"{str(error).splitlines()[0]}") from None
     printed = io.StringIO()
     try:
         with capture_this_thread(printed), watchdog():  # fmpy prints an FMU's refusal's reason

@@ -44,6 +44,7 @@ def replay(path: Path, trust: bool, as_json: bool) -> tuple[str, int] | None:
 
 def _replay(path: Path, trust: bool, as_json: bool) -> tuple[str, int] | None:
     import fmus
+    from orchestrator.campaign import PlantRefused
     from orchestrator.review.replay import ReplayRefused, replay_run
     from orchestrator.runlog import RunLogError
     from orchestrator.scenario import ScenarioError
@@ -63,6 +64,8 @@ def _replay(path: Path, trust: bool, as_json: bool) -> tuple[str, int] | None:
             report = replay_run(path, trust=trust, progress=progress)
     except (RunLogError, ReplayRefused) as error:
         return str(error), 2
+    except PlantRefused as error:  # what the file's scenario asks of its FMUs
+        return f"{path}: the run's plant cannot be built again: {error}", 2
     except ScenarioError as error:
         where = f"{error.field}: " if error.field else ""
         return (f"{path}: the run's scenario does not validate with this version of excosim: "

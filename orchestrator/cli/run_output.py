@@ -43,7 +43,7 @@ def period_grid(records: list[dict[str, Any]], target_mass_kg: float) -> tables.
         rows.append([str(r["k"]), f"({y:.2f}, {z:.3f})", f"{r['mass_kg']:.2f}",
                      Text(f"{error:+.2f}", style=style), "yes" if r["reset"] else "",
                      f"{r['duration_s']:.2f}", f"{max(r['max_abs_jerk_deg_s3']):.1f}",
-                     f"{r['planner_ms']:.1f}"])
+                     "–" if r.get("planner_ms") is None else f"{r['planner_ms']:.1f}"])
     return tables.Grid(f"Digging periods (target {target_mass_kg:g} kg)", columns, rows,
                        caption="duration: of the planned trajectory; peak jerk: largest |jerk| "
                        "of the three joints; planner: optimisation wall time",

@@ -103,18 +103,18 @@ class ResumableState:
             values = servos[joint]
             try:
                 servo.set_state(*values)
-            except (TypeError, ValueError):
+            except (TypeError, ValueError, OverflowError):
                 raise ValueError(f"{joint}: servo state {values!r} does not fit its "
                                  f"{type(servo).__name__}") from None
         coupling = fields["arm_coupling"]
         try:
             self._loop.set_state(coupling)
-        except (TypeError, ValueError, KeyError):
+        except (TypeError, ValueError, KeyError, OverflowError):
             raise ValueError(f"arm_coupling state {coupling!r} is not 3 forces (N) and 3 "
                              "mobilities (s/kg)") from None
         try:
             self._rng.bit_generator.state = fields["load_cell_rng"]
-        except (TypeError, ValueError, KeyError) as error:
+        except (TypeError, ValueError, KeyError, OverflowError) as error:
             raise ValueError(f"load_cell_rng is not a state of this generator ({error})"
                              ) from None
         self._steps, self._pile_time = fields["steps"], fields["pile_time_s"]

@@ -14,7 +14,7 @@ from typing import Any
 
 from orchestrator.review.productivity import power_limit_kw, run_productivity
 from orchestrator.runlog import RunFile, RunLogError, read_run
-from orchestrator.runlog.records import runs_problem
+from orchestrator.runlog.records import loads, runs_problem
 
 WITHIN_KG = 3.0  # the band the paper's Figure 9 holds after period 1 (section 3.2), at m* = 30 kg
 BAND_FRACTION = WITHIN_KG / 30.0  # the same band for any target: 10 % of m*
@@ -127,10 +127,12 @@ NUMERICS = ("communication_step_s", "servo_sample_s", "coupling_tolerance_rad_s2
 
 
 def numerics(scenario: dict[str, Any]) -> dict[str, Any]:
-    """The scenario's numerical settings of the plant (NUMERICS) that it sets."""
+    """The scenario's numerical settings of the plant (NUMERICS) that it sets (as numbers:
+    an edited record's other values are left out)."""
     plant = scenario.get("plant", {}) if isinstance(scenario, dict) else {}
     plant = plant if isinstance(plant, dict) else {}
-    return {key: plant[key] for key in NUMERICS if key in plant}
+    return {key: plant[key] for key in NUMERICS if isinstance(plant.get(key), int | float)
+            and not isinstance(plant[key], bool)}
 
 
 def differing_numerics(reviews: list[dict[str, Any]]) -> dict[str, list[Any]]:
@@ -148,7 +150,7 @@ def _resumed(run: RunFile) -> int | None:
 
 def _json_list(text: str) -> list:
     try:
-        value = json.loads(text)
+        value = loads(text, "overrides")
     except ValueError:
         return []
     return value if isinstance(value, list) else []
@@ -160,7 +162,7 @@ def roles(run: RunFile) -> dict[str, dict[str, Any]]:
     out: dict[str, dict[str, Any]] = {}
     for role, text in run.metadata.get("excosim.roles", {}).items():
         try:
-            value = json.loads(text)
+            value = loads(text, f"role {role}")
         except ValueError:
             continue
         if isinstance(value, dict):

@@ -280,6 +280,9 @@ def parse_run(path: Path, data: bytes, tolerant: bool = True, topics: Collection
     if run.metadata.get("excosim.run", {}).get("format") != FORMAT:
         raise RunLogError(f"{path} is an MCAP file but not an excosim run log "
                           "(no excosim.run metadata record)")
+    problem = records.header_problem(run.metadata["excosim.run"])
+    if problem is not None:
+        raise RunLogError(f"{path}: {problem}")
     if "json" in run.metadata.get("excosim.scenario", {}):
         try:
             problem = records.scenario_problem(records.loads(
