@@ -127,8 +127,10 @@ class LiveView:
         due = wall + (log_time_ns - log) * 1e-9 / self._factor
         if due < now - _LATE_S:
             self._anchor = (now, log_time_ns)
-        elif due > now + 0.002:
-            time.sleep(due - now)
+            return
+        while due > now + 0.002 and self._factor is not None:  # close(drain=False) cuts it
+            time.sleep(min(due - now, 0.1))
+            now = time.monotonic()
 
     def close(self, drain: bool = True) -> None:
         """Stop serving; with `drain`, after the messages handed over have gone out. A second
