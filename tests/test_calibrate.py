@@ -162,6 +162,10 @@ def _without(source: Path, target: Path, topic: str) -> Path:
     (["--param", f"{DENSITY}=1400:2000", "--param", f"{DENSITY}=1500:1900"], "given twice"),
     (["--param", f"{DENSITY}=1400:2000", "--workers", "2", "--scheduler", "tcp://x:1"],
      "exclude each other"),
+    (["--param", f"{DENSITY}=1400:2000", "--trials", "0"], "--trials must be at least 1"),
+    (["--param", f"{DENSITY}=1400:2000", "--workers", "0"], "--workers must be at least 1"),
+    (["--param", f"{DENSITY}=1400:2000", "--mass-weight", "1.5"], "--mass-weight must be"),
+    (["--param", f"{DENSITY}=1400:2000", "--mass-weight", "nan"], "--mass-weight must be"),
 ])
 def test_bad_input_is_one_line_and_exit_2_before_any_trial(measured, tmp_path, args, says):
     done = _calibrate(str(SCENARIO), "--against", str(measured), "-o", str(tmp_path / "out"),

@@ -44,11 +44,11 @@ def main(
     overrides: Annotated[list[str] | None, typer.Option(
         "--set", metavar="KEY=VALUE", help="Override a scenario value, as for excosim run "
         "(repeatable); the calibrated scenario keeps it.")] = None,
-    trials: Annotated[int, typer.Option("--trials", metavar="N", min=1, help="Trials in the "
+    trials: Annotated[int, typer.Option("--trials", metavar="N", help="Trials in the "
                                         "study, those it already holds included: 60 % TPE, "
                                         "then Nelder-Mead.")] = 60,
     workers: Annotated[int | None, typer.Option(
-        "--workers", metavar="N", min=1, help="Local worker processes (default 1: trials in "
+        "--workers", metavar="N", help="Local worker processes (default 1: trials in "
         "this process).")] = None,
     scheduler: Annotated[str | None, typer.Option(
         "--scheduler", metavar="ADDRESS", help="Run the trials on an existing Dask cluster, "
@@ -56,10 +56,10 @@ def main(
     output: Annotated[Path | None, typer.Option(
         "-o", "--output", metavar="DIR", help="Folder of the study and the outputs (default: "
         "runs/calibrate-<scenario>); the same command again continues its study.")] = None,
-    seed: Annotated[int, typer.Option("--seed", metavar="N", min=0, help="Seed of the TPE "
+    seed: Annotated[int, typer.Option("--seed", metavar="N", help="Seed of the TPE "
                                       "sampler.")] = 0,
     mass_weight: Annotated[float, typer.Option(
-        "--mass-weight", metavar="W", min=0.0, max=1.0, help="Weight of the mass term, 0..1 "
+        "--mass-weight", metavar="W", help="Weight of the mass term, 0..1 "
         "(the joint term has 1 - W).")] = 0.5,
     mass_scale: Annotated[float | None, typer.Option(
         "--mass-scale-kg", metavar="KG", help="Mass residual worth one unit of score (default: "
@@ -74,6 +74,12 @@ def main(
     """Fit scenario parameters so the simulated plant reproduces a logged run."""
     if workers is not None and scheduler is not None:
         _exit("--workers and --scheduler exclude each other (a cluster has its own workers)", 2)
+    for name, value, low in (("--trials", trials, 1), ("--workers", workers, 1),
+                             ("--seed", seed, 0)):
+        if value is not None and value < low:
+            _exit(f"{name} must be at least {low}, got {value}", 2)
+    if not (math.isfinite(mass_weight) and 0.0 <= mass_weight <= 1.0):
+        _exit(f"--mass-weight must be a number in 0..1, got {mass_weight:g}", 2)
     for name, value in (("--mass-scale-kg", mass_scale), ("--joint-scale-deg", joint_scale)):
         if value is not None and not (math.isfinite(value) and value > 0.0):
             _exit(f"{name} must be a number > 0, got {value:g}", 2)

@@ -33,7 +33,7 @@ _WHERE: dict[str, Any] = {}
 
 def optimize(
     sweep_file: Annotated[Path, typer.Argument(metavar="SWEEP.toml", help="Sweep file whose "
-                                               "design axes (sample = { design, low, high }) "
+                                               "design axes (a sample with a design, low and high) "
                                                "are the search space, e.g. "
                                                "sweeps/fuzzy-centres.toml.")],
     objective: Annotated[str, typer.Option(
