@@ -28,6 +28,7 @@ from orchestrator.cli.conventions import (
     version,
 )
 from orchestrator.cli.layout import layout_command
+from orchestrator.cli.options import AsJson, Trust
 from orchestrator.cli.ssp import export_ssp_command
 from orchestrator.cli.sweep import sweep as sweep_command
 
@@ -47,7 +48,7 @@ scenario_app = typer.Typer(cls=Group, help="Look at scenarios; export their plan
                            no_args_is_help=True, context_settings=HELP_OPTIONS)
 app.add_typer(scenario_app, name="scenario")
 
-RUN_LOG, Trust = run_command.RUN_LOG, run_command.Trust
+RUN_LOG = run_command.RUN_LOG
 
 
 def _fail(message: str, code: int) -> None:
@@ -98,7 +99,7 @@ def fmus_build(
 def fmus_info(
     target: Annotated[str, typer.Argument(metavar="FMU_OR_NAME", help="A .fmu file or one of "
                                           "our model names.")],
-    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    as_json: AsJson = False,
     fmi3: Annotated[bool, typer.Option("--fmi3", help="For a model name: its FMI 3.0 build.")
                     ] = False,
 ) -> None:
@@ -182,7 +183,7 @@ def review(
 def compare(
     run_logs: Annotated[list[Path], typer.Argument(metavar=RUN_LOG,
                                                    help="Run logs to compare.")],
-    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    as_json: AsJson = False,
     plots: Annotated[
         Path | None, typer.Option("--plots", metavar="DIR",
                                   help="Write the weight-error overlay into DIR.")
@@ -209,7 +210,7 @@ scenario_app.command("export-ssp", cls=Command)(export_ssp_command)
 def replay(
     run_log: Annotated[Path, typer.Argument(metavar=RUN_LOG, help="Log of a simulated run.")],
     trust: Trust = False,
-    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    as_json: AsJson = False,
 ) -> None:
     """Re-run a campaign from the scenario and FMUs in its log; check every period matches."""
     from orchestrator.cli.replay import replay as replay_log
@@ -226,7 +227,7 @@ def scenario_show(
         list[str] | None, typer.Option("--set", metavar="KEY=VALUE",
                                        help="Override a scenario value (repeatable).")
     ] = None,
-    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    as_json: AsJson = False,
     trust: Trust = False,
 ) -> None:
     """The resolved scenario with every default, the FMU and sha256 of each plant role and the

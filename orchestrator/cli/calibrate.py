@@ -18,6 +18,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from orchestrator.cli.conventions import fail, json_text
+from orchestrator.cli.options import AsJson, Quiet, Scheduler
 from orchestrator.cli.signals import (
     INTERRUPTED_EXIT,
     TERMINATED_EXIT,
@@ -50,9 +51,7 @@ def main(
     workers: Annotated[int | None, typer.Option(
         "--workers", metavar="N", help="Local worker processes (default 1: trials in "
         "this process).")] = None,
-    scheduler: Annotated[str | None, typer.Option(
-        "--scheduler", metavar="ADDRESS", help="Run the trials on an existing Dask cluster, "
-        "e.g. tcp://host:8786, instead of local workers.")] = None,
+    scheduler: Scheduler = None,
     output: Annotated[Path | None, typer.Option(
         "-o", "--output", metavar="DIR", help="Folder of the study and the outputs (default: "
         "runs/calibrate-<scenario>); the same command again continues its study.")] = None,
@@ -67,9 +66,8 @@ def main(
     joint_scale: Annotated[float | None, typer.Option(
         "--joint-scale-deg", metavar="DEG", help="Joint RMS residual worth one unit of score "
         "(default 0.05 deg).")] = None,
-    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors.")
-                     ] = False,
+    as_json: AsJson = False,
+    quiet: Quiet = False,
 ) -> None:
     """Fit scenario parameters so the simulated plant reproduces a logged run."""
     if workers is not None and scheduler is not None:

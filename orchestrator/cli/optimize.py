@@ -21,6 +21,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from orchestrator.cli.conventions import fail, json_text
+from orchestrator.cli.options import AsJson, Quiet, RecycleAfter, Scheduler, Trust, Workers
 from orchestrator.cli.signals import (
     INTERRUPTED_EXIT,
     TERMINATED_EXIT,
@@ -51,19 +52,12 @@ def optimize(
         "-o", "--output", metavar="DIR", help="Folder of the run logs, the summary and the "
         "study (study.db; default: runs/<sweep name>-optimize); the same folder again goes "
         "on with the study.")] = None,
-    workers: Annotated[int | None, typer.Option(
-        "--workers", metavar="N", help="Local worker processes (default: the cores).")] = None,
-    scheduler: Annotated[str | None, typer.Option(
-        "--scheduler", metavar="ADDRESS", help="Run on an existing Dask cluster, e.g. "
-        "tcp://host:8786, instead of local workers.")] = None,
-    recycle_after: Annotated[int, typer.Option(
-        "--recycle-after", metavar="K", help="Replace a local worker process after K runs.")
-    ] = 10,
-    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors.")
-                     ] = False,
-    trust: Annotated[bool, typer.Option("--trust", help="Run FMU files that differ from FMUs "
-                                        "built from this version's sources.")] = False,
+    workers: Workers = None,
+    scheduler: Scheduler = None,
+    recycle_after: RecycleAfter = 10,
+    as_json: AsJson = False,
+    quiet: Quiet = False,
+    trust: Trust = False,
 ) -> None:
     """Search a sweep file's design axes for the best value of a summary figure (Optuna TPE)."""
     if workers is not None and scheduler is not None:

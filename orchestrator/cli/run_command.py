@@ -8,10 +8,9 @@ from typing import Annotated
 import typer
 
 from orchestrator.cli.conventions import fail
+from orchestrator.cli.options import Trust
 
 RUN_LOG = "RUN.mcap"
-Trust = Annotated[bool, typer.Option("--trust", help="Run FMU files that differ from FMUs built "
-                                     "here from our sources (they are native code).")]
 
 
 def _fail(message: str, code: int) -> None:

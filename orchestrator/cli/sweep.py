@@ -29,6 +29,7 @@ from rich.progress import (
 )
 
 from orchestrator.cli.conventions import fail, json_text
+from orchestrator.cli.options import AsJson, Quiet, RecycleAfter, Scheduler, Trust, Workers
 from orchestrator.cli.signals import (
     INTERRUPTED_EXIT,
     TERMINATED_EXIT,
@@ -45,19 +46,12 @@ def sweep(
     output: Annotated[Path | None, typer.Option(
         "-o", "--output", metavar="DIR", help="Folder of the run logs and the summary "
         "(default: runs/<sweep name>); the same folder again resumes the sweep.")] = None,
-    workers: Annotated[int | None, typer.Option(
-        "--workers", metavar="N", help="Local worker processes (default: the cores).")] = None,
-    scheduler: Annotated[str | None, typer.Option(
-        "--scheduler", metavar="ADDRESS", help="Run on an existing Dask cluster, e.g. "
-        "tcp://host:8786, instead of local workers.")] = None,
-    recycle_after: Annotated[int, typer.Option(
-        "--recycle-after", metavar="K", help="Replace a local worker process after K runs.")
-    ] = 10,
-    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors.")
-                     ] = False,
-    trust: Annotated[bool, typer.Option("--trust", help="Run FMU files that differ from FMUs "
-                                        "built from this version's sources.")] = False,
+    workers: Workers = None,
+    scheduler: Scheduler = None,
+    recycle_after: RecycleAfter = 10,
+    as_json: AsJson = False,
+    quiet: Quiet = False,
+    trust: Trust = False,
     sensitivity: Annotated[bool, typer.Option(
         "--sensitivity", help="Also compute first-order and total Sobol indices (with 95 % "
         "intervals) of each summary figure to the axes of the sweep's saltelli design: a "
