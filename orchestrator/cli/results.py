@@ -89,7 +89,7 @@ def write_results(log_path: Path, scenario: Any) -> list[Path]:
 def serving(settings: Any, scenario: Any, log_path: Path, quiet: bool) -> Iterator[Any]:
     """The run's LiveView (orchestrator.live) while the block runs, or None without
     `settings` (cli.run.LiveSettings). The layout for the run goes beside the log
-    (<log>.layout.json) and one line on stderr says where to connect. ValueError (one line)
+    (<log>.layout.json) and one line on stderr says where to connect. LiveError (one line)
     when the view cannot start; the view plays out what was logged when the block ends
     normally."""
     if settings is None:
@@ -102,7 +102,7 @@ def serving(settings: Any, scenario: Any, log_path: Path, quiet: bool) -> Iterat
         view = LiveView(settings.port, settings.host, settings.real_time_factor,
                         name=f"excosim {scenario.name}")
     except LiveError as error:
-        raise ValueError(f"--live: {error}") from None
+        raise LiveError(f"--live: {error}") from None
     layout_path = log_path.with_suffix(".layout.json")
     try:
         layout_path.write_text(layout_text(LayoutFacts.of_scenario(scenario)), encoding="utf-8")

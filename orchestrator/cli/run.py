@@ -255,11 +255,12 @@ def _dig(scenario: Any, log_path: Path, options: RunOptions, *, reserved: bool,
 def _dig_here(scenario: Any, log_path: Path, options: RunOptions, *, reserved: bool,
               resume: Any) -> tuple[str, int] | None:
     from orchestrator.cli.results import serving
+    from orchestrator.live import LiveError
 
     try:
         with serving(options.live, scenario, log_path, options.quiet) as live:
             return _dig_live(scenario, log_path, options, reserved, resume, live)
-    except ValueError as error:  # the live view could not start: nothing was dug
+    except LiveError as error:  # the live view could not start: nothing was dug
         _drop_if_empty(log_path, reserved)
         return str(error), 2
 
